@@ -1,0 +1,22 @@
+"""pbrwarp: physically based rendering of triangle meshes on the CPU with NVIDIA Warp.
+
+>>> import pbrwarp as pw
+>>> scene = pw.Scene.load("model.glb")
+>>> pw.render(scene, pw.Camera.frame(scene), width=512, height=512).save("out.png")
+"""
+
+from .camera import Camera
+from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError
+from .frame import Frame
+from .lights import DirectionalLight, PointLight, SpotLight
+from .materials import Material
+from .render import render
+from .scene import Primitive, Scene
+from .textures import Texture
+
+__all__ = [
+    "AssetFormatError", "AssetNotFoundError", "Camera", "DirectionalLight", "Frame", "InputError",
+    "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "Scene", "SpotLight",
+    "Texture", "render",
+]
+__version__ = "0.1.0"

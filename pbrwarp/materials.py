@@ -1,0 +1,83 @@
+"""Metallic-roughness materials, as glTF 2.0 defines them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from . import validate
+from .errors import InputError
+from .textures import Texture
+
+# Texture slots: (attribute, whether the texels are sRGB-encoded colour by default).
+TEXTURE_SLOTS = (
+    ("base_color_texture", True),
+    ("metallic_roughness_texture", False),
+    ("normal_texture", False),
+    ("occlusion_texture", False),
+    ("emissive_texture", True),
+)
+
+
+@dataclass(eq=False)
+class Material:
+    """A glTF metallic-roughness material.
+
+    Factors are linear (as in glTF) and multiply the matching texture, if any.
+
+    - ``base_color``: linear RGB or RGBA. Colour textures are sRGB-encoded unless the
+      :class:`Texture` says otherwise.
+    - ``metallic``, ``roughness``: in [0, 1]; values outside are rejected (not clamped), since
+      they nearly always mean a bug upstream. ``metallic_roughness_texture`` holds roughness in G
+      and metallic in B (glTF).
+    - ``specular``: KHR_materials_specular's strength of the dielectric specular lobe: 1 is the
+      usual f0 = 0.04, 0 removes the lobe entirely (a pure Lambert surface). It scales both f0
+      and f90 of dielectric Fresnel; metals are unaffected.
+    - ``emissive``: emitted radiance in W/(sr m^2) (nits for white), times ``emissive_texture``.
+    - ``normal_texture`` with ``normal_scale``; ``occlusion_texture`` with
+      ``occlusion_strength`` (occlusion only scales ambient/environment light, so it has no
+      effect under punctual lights alone, as glTF specifies).
+    - ``double_sided``: back faces are shaded with flipped normals; when False, back faces are
+      culled for camera rays (glTF). Shadows are cast by every face either way.
+    """
+
+    base_color: tuple = (0.8, 0.8, 0.8)
+    metallic: float = 0.0
+    roughness: float = 0.5
+    specular: float = 1.0
+    emissive: tuple = (0.0, 0.0, 0.0)
+    base_color_texture: Texture | None = None
+    metallic_roughness_texture: Texture | None = None
+    normal_texture: Texture | None = None
+    normal_scale: float = 1.0
+    occlusion_texture: Texture | None = None
+    occlusion_strength: float = 1.0
+    emissive_texture: Texture | None = None
+    double_sided: bool = False
+    alpha_mode: str = "OPAQUE"
+    alpha_cutoff: float = 0.5
+    name: str = field(default="")
+
+    def __post_init__(self):
+        rgba = validate.colour(self.base_color, "Material.base_color", allow_alpha=True)
+        if len(rgba) == 4 and rgba[3] > 1.0:
+            raise InputError(f"Material.base_color alpha must lie in [0, 1], got {rgba[3]}")
+        self.base_color = rgba if len(rgba) == 4 else (*rgba, 1.0)
+        self.metallic = validate.unit_interval(self.metallic, "Material.metallic")
+        self.roughness = validate.unit_interval(self.roughness, "Material.roughness")
+        self.specular = validate.unit_interval(self.specular, "Material.specular")
+        self.emissive = validate.colour(self.emissive, "Material.emissive")
+        self.normal_scale = validate.finite_scalar(self.normal_scale, "Material.normal_scale")
+        self.occlusion_strength = validate.unit_interval(self.occlusion_strength, "Material.occlusion_strength")
+        self.alpha_cutoff = validate.unit_interval(self.alpha_cutoff, "Material.alpha_cutoff")
+        if self.alpha_mode not in ("OPAQUE", "MASK", "BLEND"):
+            raise InputError(f"Material.alpha_mode must be OPAQUE, MASK or BLEND, got {self.alpha_mode!r}")
+        self.double_sided = bool(self.double_sided)
+        for slot, _ in TEXTURE_SLOTS:
+            setattr(self, slot, Texture.wrap(getattr(self, slot), f"Material.{slot}"))
+
+    def textures(self):
+        """(slot, texture, srgb) for every texture this material uses."""
+        for slot, colour_slot in TEXTURE_SLOTS:
+            tex = getattr(self, slot)
+            if tex is not None:
+                yield slot, tex, colour_slot if tex.srgb is None else tex.srgb

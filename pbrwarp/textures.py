@@ -1,0 +1,134 @@
+"""Textures: images plus how to sample them (wrap modes, UV transform).
+
+UV convention: pbrwarp uses glTF's, (0, 0) is the top-left corner of the image and v grows
+downwards. Meshes from trimesh carry (u, 1 - v) and are converted when they enter a scene.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError, InputTypeError
+
+WRAP_MODES = {"repeat": 0, "clamp": 1, "mirror": 2}
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB EOTF (IEC 61966-2-1), applied per channel to values in [0, 1]."""
+    c = np.asarray(c, dtype=np.float32)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def image_to_float_rgba(image, what: str = "texture") -> np.ndarray:
+    """Any Pillow image or numpy array as a float32 (H, W, 4) array of values in [0, 1].
+
+    Integer arrays are scaled by their type's maximum (8- and 16-bit PNGs alike); float arrays are
+    taken as they are. Greyscale is replicated to RGB; a missing alpha channel becomes 1.
+    """
+    try:
+        from PIL import Image
+    except ImportError:  # pragma: no cover - Pillow is a core dependency
+        Image = None
+    if Image is not None and isinstance(image, Image.Image):
+        if image.mode == "P":
+            image = image.convert("RGBA")
+        elif image.mode in ("I;16", "I;16B", "I;16L"):
+            image = np.asarray(image, dtype=np.uint16)
+        elif image.mode == "I":
+            image = np.clip(np.asarray(image, dtype=np.int64), 0, 65535).astype(np.uint16)
+        elif image.mode in ("CMYK", "YCbCr", "LAB", "HSV", "1", "F"):
+            image = image.convert("RGB") if image.mode != "F" else np.asarray(image)
+        if not isinstance(image, np.ndarray):
+            image = np.asarray(image)
+    if not isinstance(image, np.ndarray):
+        raise InputTypeError(f"{what} must be a numpy array or a Pillow image, got {type(image).__name__}")
+    arr = image
+    if arr.ndim == 2:
+        arr = arr[:, :, None]
+    if arr.ndim != 3 or arr.shape[2] not in (1, 2, 3, 4):
+        raise InputError(f"{what} must have shape (H, W) or (H, W, 1..4), got {image.shape}")
+    if arr.shape[0] == 0 or arr.shape[1] == 0:
+        raise InputError(f"{what} is empty (shape {image.shape})")
+    if np.issubdtype(arr.dtype, np.integer):
+        scale = float(np.iinfo(arr.dtype).max)
+        arr = arr.astype(np.float32) / scale
+    elif np.issubdtype(arr.dtype, np.floating) or arr.dtype == np.bool_:
+        arr = arr.astype(np.float32)
+    else:
+        raise InputTypeError(f"{what} has unsupported dtype {arr.dtype}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{what} contains NaN or Inf texels")
+    h, w, c = arr.shape
+    out = np.ones((h, w, 4), dtype=np.float32)
+    if c in (1, 2):
+        out[:, :, :3] = arr[:, :, :1]
+        if c == 2:
+            out[:, :, 3] = arr[:, :, 1]
+    else:
+        out[:, :, :c] = arr
+    return out
+
+
+@dataclass(eq=False)
+class Texture:
+    """An image and the way a material samples it.
+
+    ``image``: numpy array (H, W[, C]) or Pillow image. ``srgb``: whether the texels are
+    sRGB-encoded; ``None`` lets the material slot decide (colour slots sRGB, data slots linear,
+    as glTF says). ``wrap_s``/``wrap_t``: "repeat", "clamp" or "mirror". ``offset``, ``rotation``
+    (radians) and ``scale`` are KHR_texture_transform's.
+    """
+
+    image: object
+    srgb: bool | None = None
+    wrap_s: str = "repeat"
+    wrap_t: str = "repeat"
+    offset: tuple[float, float] = (0.0, 0.0)
+    rotation: float = 0.0
+    scale: tuple[float, float] = (1.0, 1.0)
+    _rgba: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self):
+        for name in ("wrap_s", "wrap_t"):
+            mode = getattr(self, name)
+            if mode not in WRAP_MODES:
+                raise InputError(f"Texture {name} must be one of {sorted(WRAP_MODES)}, got {mode!r}")
+        values = (*self.offset, self.rotation, *self.scale)
+        if len(values) != 5 or not all(math.isfinite(float(v)) for v in values):
+            raise InputError(f"Texture transform must be finite: offset={self.offset}, "
+                             f"rotation={self.rotation}, scale={self.scale}")
+        self._rgba = image_to_float_rgba(self.image)
+
+    @classmethod
+    def wrap(cls, value, what: str) -> "Texture | None":
+        """``value`` as a Texture: None stays None, images and arrays get default sampling."""
+        if value is None or isinstance(value, Texture):
+            return value
+        try:
+            return cls(value)
+        except InputError as err:
+            raise InputError(f"{what}: {err}") from None
+        except InputTypeError as err:
+            raise InputTypeError(f"{what}: {err}") from None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self._rgba.shape[:2]
+
+    def texels(self, srgb: bool) -> np.ndarray:
+        """Linear float32 RGBA texels; colour channels decoded from sRGB when ``srgb``."""
+        if not srgb:
+            return self._rgba
+        out = self._rgba.copy()
+        out[:, :, :3] = srgb_to_linear(out[:, :, :3])
+        return out
+
+    def uv_matrix(self) -> np.ndarray:
+        """The 2x3 affine map uv -> uv' of KHR_texture_transform (translation * rotation * scale)."""
+        c, s = math.cos(self.rotation), math.sin(self.rotation)
+        sx, sy = self.scale
+        tx, ty = self.offset
+        return np.array([[c * sx, s * sy, tx], [-s * sx, c * sy, ty]], dtype=np.float32)

@@ -1,0 +1,70 @@
+"""Checks that turn bad user input into clear errors before anything reaches Warp."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import InputError, InputTypeError
+
+
+def finite_vector(value, length: int, what: str) -> tuple[float, ...]:
+    """``value`` as a tuple of ``length`` finite floats."""
+    try:
+        arr = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputTypeError(f"{what} must be {length} numbers, got {value!r}") from None
+    if arr.shape != (length,):
+        raise InputError(f"{what} must have {length} components, got {arr.size}: {value!r}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{what} must be finite, got {value!r}")
+    return tuple(float(x) for x in arr)
+
+
+def finite_scalar(value, what: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputTypeError(f"{what} must be a number, got {value!r}") from None
+    if not math.isfinite(x):
+        raise InputError(f"{what} must be finite, got {value!r}")
+    return x
+
+
+def non_negative(value, what: str) -> float:
+    x = finite_scalar(value, what)
+    if x < 0.0:
+        raise InputError(f"{what} must be >= 0, got {x}")
+    return x
+
+
+def unit_interval(value, what: str) -> float:
+    """A factor in [0, 1]. Out-of-range values are rejected, not clamped: a roughness of 1.5
+    is far more often a bug (a percentage, a wrong channel) than an intent."""
+    x = finite_scalar(value, what)
+    if not 0.0 <= x <= 1.0:
+        raise InputError(f"{what} must lie in [0, 1], got {x}")
+    return x
+
+
+def colour(value, what: str, allow_alpha: bool = False) -> tuple[float, ...]:
+    """An RGB (or RGBA) colour of non-negative finite components."""
+    try:
+        arr = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputTypeError(f"{what} must be an RGB triple, got {value!r}") from None
+    sizes = (3, 4) if allow_alpha else (3,)
+    if arr.size not in sizes:
+        raise InputError(f"{what} must have {' or '.join(map(str, sizes))} components, got {value!r}")
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise InputError(f"{what} must be finite and non-negative, got {value!r}")
+    return tuple(float(x) for x in arr)
+
+
+def positive_int(value, what: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputTypeError(f"{what} must be a whole number, got {value!r}")
+    if value <= 0:
+        raise InputError(f"{what} must be > 0, got {value}")
+    return int(value)
