@@ -1,1 +1,97 @@
-class Frame: pass
+"""Rendered frames: linear radiance plus depth, normal and coverage, and their conversion to images."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from .errors import InputError
+
+from pbrwarp.kernels.tonemap import TONEMAPS, tonemap_kernel
+
+
+@dataclass
+class Frame:
+    """The result of :func:`pbrwarp.render`.
+
+    - ``rgb``: (H, W, 3) float32 linear radiance (nits for white), composited over the background.
+    - ``depth``: (H, W) float32 distance from the eye along the ray (the nearest over the pixel's
+      samples), ``inf`` where nothing was hit.
+    - ``normal``: (H, W, 3) world-space shading normal (mean over the pixel's hit samples), 0 on miss.
+    - ``alpha``: (H, W) fraction of the pixel's samples that hit a surface.
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    alpha: np.ndarray
+    background: tuple = (0.0, 0.0, 0.0)
+
+    @property
+    def foreground(self) -> np.ndarray:
+        """Radiance of the surfaces alone, premultiplied by coverage (rgb minus the background)."""
+        bg = np.asarray(self.background, dtype=np.float32)
+        return self.rgb - bg * (1.0 - self.alpha[..., None])
+
+    def to_srgb8(self, exposure: float = 0.0, tonemap: str = "aces", rgb: np.ndarray | None = None) -> np.ndarray:
+        """(H, W, 3) uint8 sRGB: radiance scaled by 2^exposure (EV stops), tone mapped
+        ("none" clips, "reinhard", "aces"), then sRGB-encoded. NaN maps to black, Inf to white."""
+        if tonemap not in TONEMAPS:
+            raise InputError(f"tonemap must be one of {', '.join(TONEMAPS)}, got {tonemap!r}")
+        exposure = float(exposure)
+        if not np.isfinite(exposure):
+            raise InputError(f"exposure must be finite, got {exposure}")
+        source = self.rgb if rgb is None else rgb
+        h, w = source.shape[:2]
+        src = wp.array(np.ascontiguousarray(source, dtype=np.float32).reshape(-1, 3), dtype=wp.vec3, device="cpu")
+        out = wp.zeros((h * w, 3), dtype=wp.uint8, device="cpu")
+        wp.launch(tonemap_kernel(tonemap), dim=h * w, inputs=[src, float(2.0**exposure), out], device="cpu")
+        return out.numpy().reshape(h, w, 3)
+
+    def to_rgba8(self, exposure: float = 0.0, tonemap: str = "aces") -> np.ndarray:
+        """(H, W, 4) uint8 sRGB with straight (unassociated) alpha, as PNG stores it."""
+        a = self.alpha[..., None]
+        straight = np.divide(self.foreground, a, out=np.zeros_like(self.rgb), where=a > 0)
+        rgb8 = self.to_srgb8(exposure, tonemap, rgb=straight)
+        alpha8 = np.round(np.clip(self.alpha, 0.0, 1.0) * 255.0).astype(np.uint8)
+        return np.concatenate([rgb8, alpha8[..., None]], axis=2)
+
+    def save(self, path, exposure: float = 0.0, tonemap: str = "aces", transparent: bool = False) -> None:
+        """Write the frame atomically (a temporary file renamed into place, so a failed write
+        never leaves a half-written file). ``.png``/``.jpg``/... go through Pillow, tone mapped;
+        ``.npy`` stores linear float32 RGBA (radiance + coverage) for further processing.
+        ``transparent`` writes PNG alpha from coverage instead of the background colour."""
+        path = os.fspath(path)
+        ext = os.path.splitext(path)[1].lower()
+        directory = os.path.dirname(os.path.abspath(path))
+        if not os.path.isdir(directory):
+            raise InputError(f"cannot save {path}: folder {directory} does not exist")
+        if ext == ".npy":
+            def write(f):
+                np.save(f, np.concatenate([self.rgb, self.alpha[..., None]], axis=2).astype(np.float32))
+        else:
+            from PIL import Image
+
+            fmt = Image.registered_extensions().get(ext)
+            if fmt is None:
+                raise InputError(f"cannot save {path}: unknown image extension {ext!r} (try .png or .npy)")
+            if transparent and fmt not in ("PNG", "WEBP", "TIFF"):
+                raise InputError(f"{fmt} cannot store transparency; save as .png")
+            pixels = self.to_rgba8(exposure, tonemap) if transparent else self.to_srgb8(exposure, tonemap)
+            image = Image.fromarray(pixels)
+
+            def write(f):
+                image.save(f, format=fmt)
+        fd, tmp = tempfile.mkstemp(prefix=".pbrwarp-", suffix=ext, dir=directory)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                write(f)
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise

@@ -36,8 +36,10 @@ class Material:
     - ``normal_texture`` with ``normal_scale``; ``occlusion_texture`` with
       ``occlusion_strength`` (occlusion only scales ambient/environment light, so it has no
       effect under punctual lights alone, as glTF specifies).
-    - ``double_sided``: back faces are shaded with flipped normals; when False, back faces are
-      culled for camera rays (glTF). Shadows are cast by every face either way.
+    - ``double_sided``: back faces are shaded with flipped normals (the default here, so a lone
+      plane is visible from both sides); when False, back faces are culled for camera rays, as
+      glTF specifies (glTF files set it per material; glTF's own default is False). Shadows are
+      cast by every face either way.
     """
 
     base_color: tuple = (0.8, 0.8, 0.8)
@@ -52,7 +54,7 @@ class Material:
     occlusion_texture: Texture | None = None
     occlusion_strength: float = 1.0
     emissive_texture: Texture | None = None
-    double_sided: bool = False
+    double_sided: bool = True
     alpha_mode: str = "OPAQUE"
     alpha_cutoff: float = 0.5
     name: str = field(default="")

@@ -1,2 +1,139 @@
-def render(*a, **k):
-    raise NotImplementedError
+"""The render entry point: upload the scene, pick the kernel for its features, launch tiles on a
+thread pool (Warp CPU launches run on one thread and release the GIL)."""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import warp as wp
+
+from . import validate
+from .camera import Camera
+from .errors import InputTypeError
+from .features import scene_features
+from .frame import Frame
+from .gpu_scene import upload
+from .scene import Scene
+from pbrwarp.kernels.camera import CameraData
+from pbrwarp.kernels.render import render_kernel
+
+TILE_SIZE = 64
+
+
+def _stratification_grid(spp: int) -> tuple[int, int]:
+    """(m, n) with m n = spp and m the largest divisor of spp not above sqrt(spp)."""
+    m = max(d for d in range(1, math.isqrt(spp) + 1) if spp % d == 0)
+    return m, spp // m
+
+
+def _camera_data(camera: Camera, width: int, height: int) -> CameraData:
+    tan_half = math.tan(math.radians(camera.fov_y) / 2.0)
+    data = CameraData()
+    data.eye = wp.vec3(*camera.eye)
+    data.forward = wp.vec3(*camera.forward)
+    data.right = wp.vec3(*(np.asarray(camera.right) * tan_half * width / height))
+    data.up = wp.vec3(*(np.asarray(camera.up) * tan_half))
+    data.width, data.height = width, height
+    return data
+
+
+def tiles(width: int, height: int, size: int = TILE_SIZE):
+    """(x0, y0, tile_width, tile_height) covering the image, row by row."""
+    return [(x0, y0, min(size, width - x0), min(size, height - y0))
+            for y0 in range(0, height, size) for x0 in range(0, width, size)]
+
+
+def _progress_bar(total: int, enabled):
+    if enabled is False:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return None
+    # delay: the bar appears only for renders that take more than about a second
+    return tqdm(total=total, unit="tile", desc="render", delay=1.0, leave=False)
+
+
+def render(
+    scene: Scene,
+    camera: Camera | None = None,
+    width: int = 800,
+    height: int = 600,
+    spp: int = 1,
+    threads: int | None = None,
+    shadows: bool = True,
+    background=(0.0, 0.0, 0.0),
+    seed: int = 0,
+    progress: bool | None = None,
+) -> Frame:
+    """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
+
+    ``camera`` defaults to the scene file's first camera, else one framing the whole scene.
+    ``spp`` samples per pixel are stratified (multi-jittered); spp = 1 samples pixel centres.
+    ``threads`` defaults to every core; the image does not depend on it. ``shadows`` traces one
+    shadow ray per light and sample. ``background`` is the linear radiance where no surface is
+    hit (``frame.alpha`` records coverage for transparent output). ``progress``: None shows a bar
+    (if tqdm is installed) for renders longer than about a second, False never.
+    """
+    if not isinstance(scene, Scene):
+        raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
+    width = validate.positive_int(width, "width")
+    height = validate.positive_int(height, "height")
+    spp = validate.positive_int(spp, "spp")
+    if threads is not None:
+        threads = validate.positive_int(threads, "threads")
+    background = validate.colour(background, "background")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise InputTypeError(f"seed must be an integer, got {seed!r}")
+    if camera is None:
+        camera = scene.cameras[0] if scene.cameras else Camera.frame(scene)
+    elif not isinstance(camera, Camera):
+        raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
+
+    gpu = upload(scene)
+    kernel = render_kernel(scene_features(gpu, shadows, spp))
+    grid_m, grid_n = _stratification_grid(spp)
+    cam = _camera_data(camera, width, height)
+    out_rgb = wp.empty((height, width), dtype=wp.vec3, device="cpu")
+    out_alpha = wp.empty((height, width), dtype=float, device="cpu")
+    out_depth = wp.empty((height, width), dtype=float, device="cpu")
+    out_normal = wp.empty((height, width), dtype=wp.vec3, device="cpu")
+    bg = wp.vec3(*background)
+
+    def launch(tile):
+        x0, y0, tw, th = tile
+        wp.launch(kernel, dim=tw * th, device="cpu",
+                  inputs=[gpu.data, cam, spp, grid_m, grid_n, int(seed) % (2**31), x0, y0, tw, bg,
+                          out_rgb, out_alpha, out_depth, out_normal])
+
+    work = tiles(width, height)
+    bar = _progress_bar(len(work), progress)
+    try:
+        # the first launch compiles or loads the kernel, which must not happen on many threads at once
+        launch(work[0])
+        if bar is not None:
+            bar.update(1)
+        workers = threads or os.cpu_count() or 1
+        if workers == 1 or len(work) == 1:
+            for tile in work[1:]:
+                launch(tile)
+                if bar is not None:
+                    bar.update(1)
+        else:
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                for _ in pool.map(launch, work[1:]):
+                    if bar is not None:
+                        bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return Frame(
+        rgb=out_rgb.numpy().reshape(height, width, 3),
+        depth=out_depth.numpy(),
+        normal=out_normal.numpy().reshape(height, width, 3),
+        alpha=out_alpha.numpy(),
+        background=background,
+    )

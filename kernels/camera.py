@@ -1,0 +1,24 @@
+"""Primary rays of a pinhole camera."""
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.struct
+class CameraData:
+    eye: wp.vec3
+    forward: wp.vec3
+    # right and up, scaled by the half-extent of the image plane at distance 1
+    right: wp.vec3
+    up: wp.vec3
+    width: int
+    height: int
+
+
+@wp.func
+def camera_ray_direction(cam: CameraData, x: float, y: float) -> wp.vec3:
+    """Unit direction through the image point (x, y) in pixels, (0, 0) the top-left corner."""
+    ndc_x = 2.0 * x / float(cam.width) - 1.0
+    ndc_y = 1.0 - 2.0 * y / float(cam.height)
+    return wp.normalize(cam.forward + cam.right * ndc_x + cam.up * ndc_y)

@@ -1,0 +1,67 @@
+"""Punctual lights (KHR_lights_punctual): the direction to the light and the irradiance it
+delivers to a surface facing it, in photometric units (lux)."""
+
+import warp as wp
+
+from .robust import RAY_FAR
+
+wp.set_module_options({"enable_backward": False})
+
+LIGHT_POINT = wp.constant(0)
+LIGHT_DIRECTIONAL = wp.constant(1)
+LIGHT_SPOT = wp.constant(2)
+# Squared distance floor of the inverse-square law: a point light on the surface gives a huge
+# but finite irradiance instead of Inf.
+MIN_DISTANCE_SQ = wp.constant(1.0e-20)
+
+
+@wp.struct
+class LightData:
+    kind: int
+    position: wp.vec3
+    # the direction the light travels (directional and spot lights)
+    direction: wp.vec3
+    # color * intensity: candela for point/spot, lux for directional
+    intensity: wp.vec3
+    # glTF spot cone: attenuation = saturate(cos(angle) * cone_scale + cone_offset)^2
+    cone_scale: float
+    cone_offset: float
+
+
+@wp.struct
+class LightSample:
+    to_light: wp.vec3
+    # irradiance on a surface facing the light (times n.l gives the irradiance)
+    irradiance: wp.vec3
+    distance: float
+
+
+@wp.func
+def spot_attenuation(light: LightData, to_light: wp.vec3) -> float:
+    """glTF's smooth cone falloff between the inner and outer cone angles."""
+    cos_angle = wp.dot(light.direction, -to_light)
+    a = wp.clamp(cos_angle * light.cone_scale + light.cone_offset, 0.0, 1.0)
+    return a * a
+
+
+@wp.func
+def sample_light(light: LightData, p: wp.vec3) -> LightSample:
+    """Direction, irradiance (inverse-square law for point and spot lights) and distance."""
+    out = LightSample()
+    if light.kind == LIGHT_DIRECTIONAL:
+        out.to_light = -light.direction
+        out.irradiance = light.intensity
+        out.distance = RAY_FAR
+        return out
+    d = light.position - p
+    dist_sq = wp.dot(d, d)
+    dist = wp.sqrt(dist_sq)
+    if dist > 0.0:
+        out.to_light = d / dist
+    else:
+        out.to_light = -light.direction
+    out.distance = dist
+    out.irradiance = light.intensity / wp.max(dist_sq, MIN_DISTANCE_SQ)
+    if light.kind == LIGHT_SPOT:
+        out.irradiance = out.irradiance * spot_attenuation(light, out.to_light)
+    return out

@@ -1,0 +1,229 @@
+"""The render kernel: camera rays, closest hit, surface attributes, direct lighting with shadow
+rays, accumulated over stratified sub-pixel samples. Built per feature set, so the compiled
+code holds only what a scene needs."""
+
+import functools
+
+import warp as wp
+
+from .brdf import brdf_cook_torrance
+from .camera import CameraData, camera_ray_direction
+from .lights import sample_light
+from .normal_mapping import perturb_normal
+from .robust import (
+    RAY_FAR,
+    SHADOW_RAY_SHORTENING,
+    barycentric_point_error,
+    offset_ray_origin,
+    safe_normalize,
+)
+from .sampling import multi_jittered_sample
+from .scene_data import NO_TEXTURE, SceneData
+from .textures import sample_texture
+
+wp.set_module_options({"enable_backward": False})
+
+# How many culled surfaces (single-sided back faces, alpha-masked texels) a camera ray may pass
+# through before it gives up and reports a miss.
+MAX_PASS_THROUGH = wp.constant(16)
+
+
+@wp.struct
+class SurfaceHit:
+    p: wp.vec3
+    p_error: wp.vec3
+    # geometric normal, turned towards the side the ray came from
+    ng: wp.vec3
+    b0: float
+    b1: float
+    b2: float
+    i0: int
+    i1: int
+    i2: int
+    material: int
+    back_face: int
+
+
+@wp.func
+def surface_hit(scene: SceneData, face: int, u: float, v: float, ray_dir: wp.vec3) -> SurfaceHit:
+    """Hit point from barycentrics (Warp: p = p0 u + p1 v + p2 (1 - u - v)) with its error bound."""
+    h = SurfaceHit()
+    h.i0 = scene.indices[3 * face]
+    h.i1 = scene.indices[3 * face + 1]
+    h.i2 = scene.indices[3 * face + 2]
+    p0 = scene.positions[h.i0]
+    p1 = scene.positions[h.i1]
+    p2 = scene.positions[h.i2]
+    h.b0 = u
+    h.b1 = v
+    h.b2 = 1.0 - u - v
+    h.p = p0 * h.b0 + p1 * h.b1 + p2 * h.b2
+    h.p_error = barycentric_point_error(p0, p1, p2, h.b0, h.b1, h.b2)
+    ng = safe_normalize(wp.cross(p1 - p0, p2 - p0), -ray_dir)
+    h.back_face = 0
+    if wp.dot(ng, ray_dir) > 0.0:
+        h.back_face = 1
+        ng = -ng
+    h.ng = ng
+    h.material = scene.face_material[face]
+    return h
+
+
+@wp.func
+def interpolate_vec2(a: wp.array(dtype=wp.vec2), h: SurfaceHit) -> wp.vec2:
+    return a[h.i0] * h.b0 + a[h.i1] * h.b1 + a[h.i2] * h.b2
+
+
+@wp.func
+def interpolate_vec3(a: wp.array(dtype=wp.vec3), h: SurfaceHit) -> wp.vec3:
+    return a[h.i0] * h.b0 + a[h.i1] * h.b1 + a[h.i2] * h.b2
+
+
+@wp.func
+def interpolate_vec4(a: wp.array(dtype=wp.vec4), h: SurfaceHit) -> wp.vec4:
+    return a[h.i0] * h.b0 + a[h.i1] * h.b1 + a[h.i2] * h.b2
+
+
+@functools.cache
+def render_kernel(features):
+    """The tile kernel for a ``features`` value (hashable; see pbrwarp.features.Features).
+
+    Each flag is a compile-time constant: code for an absent effect is not generated at all.
+    """
+    textured = features.textures
+    normal_mapping = features.normal_mapping
+    shadows = features.shadows
+    supersampling = features.supersampling
+    pass_through = features.pass_through
+
+    @wp.func
+    def texture_or_one(scene: SceneData, index: int, uv: wp.vec2) -> wp.vec4:
+        if index == NO_TEXTURE:
+            return wp.vec4(1.0)
+        return sample_texture(scene.textures[index], scene.texels, uv)
+
+    @wp.func
+    def is_culled(scene: SceneData, h: SurfaceHit) -> bool:
+        mat = scene.materials[h.material]
+        if h.back_face == 1 and mat.double_sided == 0:
+            return True
+        if mat.alpha_mask == 1:
+            alpha = mat.base_color[3] * interpolate_vec4(scene.colors, h)[3]
+            if wp.static(textured):
+                alpha = alpha * texture_or_one(scene, mat.base_color_texture, interpolate_vec2(scene.uvs, h))[3]
+            return alpha < mat.alpha_cutoff
+        return False
+
+    @wp.func
+    def shade(scene: SceneData, h: SurfaceHit, view: wp.vec3, shading_normal: wp.vec3) -> wp.vec3:
+        mat = scene.materials[h.material]
+        base = wp.vec3(mat.base_color[0], mat.base_color[1], mat.base_color[2])
+        vertex_color = interpolate_vec4(scene.colors, h)
+        base = wp.cw_mul(base, wp.vec3(vertex_color[0], vertex_color[1], vertex_color[2]))
+        metallic = mat.metallic
+        roughness = mat.roughness
+        emissive = mat.emissive
+        if wp.static(textured):
+            uv = interpolate_vec2(scene.uvs, h)
+            bc = texture_or_one(scene, mat.base_color_texture, uv)
+            base = wp.cw_mul(base, wp.vec3(bc[0], bc[1], bc[2]))
+            mr = texture_or_one(scene, mat.metallic_roughness_texture, uv)
+            roughness = roughness * mr[1]
+            metallic = metallic * mr[2]
+            em = texture_or_one(scene, mat.emissive_texture, uv)
+            emissive = wp.cw_mul(emissive, wp.vec3(em[0], em[1], em[2]))
+        n = shading_normal
+        radiance = emissive
+        for i in range(scene.num_lights):
+            ls = sample_light(scene.lights[i], h.p)
+            # light below the geometric surface: shading normals must not leak it through
+            if wp.dot(h.ng, ls.to_light) <= 0.0:
+                continue
+            f = brdf_cook_torrance(n, view, ls.to_light, base, metallic, roughness, mat.specular)
+            n_dot_l = wp.dot(n, ls.to_light)
+            if n_dot_l <= 0.0:
+                continue
+            if wp.static(shadows):
+                origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
+                max_t = RAY_FAR
+                if ls.distance < RAY_FAR:
+                    max_t = wp.length(scene.lights[i].position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
+                if wp.mesh_query_ray_anyhit(scene.mesh, origin, ls.to_light, max_t):
+                    continue
+            radiance = radiance + wp.cw_mul(f, ls.irradiance) * n_dot_l
+        return radiance
+
+    @wp.func
+    def shading_normal(scene: SceneData, h: SurfaceHit) -> wp.vec3:
+        """Interpolated (and normal-mapped) normal, turned to the side the ray came from."""
+        front_ng = h.ng
+        if h.back_face == 1:
+            front_ng = -h.ng
+        n = safe_normalize(interpolate_vec3(scene.normals, h), front_ng)
+        if wp.static(normal_mapping):
+            mat = scene.materials[h.material]
+            if mat.normal_texture != NO_TEXTURE:
+                texel = texture_or_one(scene, mat.normal_texture, interpolate_vec2(scene.uvs, h))
+                n = perturb_normal(n, interpolate_vec4(scene.tangents, h), texel, mat.normal_scale)
+        if h.back_face == 1:
+            n = -n
+        return n
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def render_tile(
+        scene: SceneData,
+        cam: CameraData,
+        spp: int,
+        grid_m: int,
+        grid_n: int,
+        seed: int,
+        x0: int,
+        y0: int,
+        tile_width: int,
+        background: wp.vec3,
+        out_rgb: wp.array2d(dtype=wp.vec3),
+        out_alpha: wp.array2d(dtype=float),
+        out_depth: wp.array2d(dtype=float),
+        out_normal: wp.array2d(dtype=wp.vec3),
+    ):
+        tid = wp.tid()
+        px = x0 + tid % tile_width
+        py = y0 + tid / tile_width
+        pixel_seed = seed + py * cam.width + px
+        radiance = wp.vec3(0.0)
+        normal_sum = wp.vec3(0.0)
+        hits = int(0)
+        depth = float(RAY_FAR)
+        for s in range(spp):
+            offset = wp.vec2(0.5, 0.5)
+            if wp.static(supersampling):
+                offset = multi_jittered_sample(s, grid_m, grid_n, pixel_seed)
+            d = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1])
+            origin = cam.eye
+            for _ in range(MAX_PASS_THROUGH):
+                q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
+                if not q.result:
+                    break
+                h = surface_hit(scene, q.face, q.u, q.v, d)
+                if wp.static(pass_through):
+                    if is_culled(scene, h):
+                        origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
+                        continue
+                n = shading_normal(scene, h)
+                radiance = radiance + shade(scene, h, -d, n)
+                normal_sum = normal_sum + n
+                hits = hits + 1
+                depth = wp.min(depth, wp.length(h.p - cam.eye))
+                break
+        inv_spp = 1.0 / float(spp)
+        alpha = float(hits) * inv_spp
+        out_rgb[py, px] = radiance * inv_spp + background * (1.0 - alpha)
+        out_alpha[py, px] = alpha
+        if hits > 0:
+            out_depth[py, px] = depth
+            out_normal[py, px] = safe_normalize(normal_sum, wp.vec3(0.0))
+        else:
+            out_depth[py, px] = wp.inf
+            out_normal[py, px] = wp.vec3(0.0)
+
+    return render_tile

@@ -1,0 +1,70 @@
+"""Robust floating-point helpers: every epsilon, clamp and ray offset pbrwarp uses lives here."""
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+# Half a float32 ulp at 1.0: the unit roundoff of pbrt-v4's error analysis (MachineEpsilon).
+UNIT_ROUNDOFF = wp.constant(5.960464477539063e-08)
+# Safety factor on pbrt's bound: Warp's ray-triangle test has no conservative t > 0 check, so the
+# origin must sit clearly, not just barely, on the outside of the surface.
+OFFSET_SAFETY = wp.constant(4.0)
+# Smallest ray offset, for hits at the exact origin where every error bound is zero.
+MIN_OFFSET = wp.constant(1.0e-30)
+# Shading cosines below this are clamped (Filament clamps n.v to 1e-4 to avoid dividing by ~0).
+MIN_COSINE = wp.constant(1.0e-4)
+# Ray segments towards point and spot lights stop this fraction short of the light, so a light
+# lying on a surface is not shadowed by that very surface.
+SHADOW_RAY_SHORTENING = wp.constant(1.0e-5)
+# Distance used as "infinitely far" for rays and directional lights.
+RAY_FAR = wp.constant(1.0e30)
+# Largest finite radiance handed to tone mapping (fp16 max): Inf and huge values map to white.
+RADIANCE_MAX = wp.constant(65504.0)
+
+
+@wp.func
+def gamma(n: float) -> float:
+    """pbrt-v4's gamma(n) = n u / (1 - n u): the bound on n float32 roundings (Higham 2002)."""
+    return n * UNIT_ROUNDOFF / (1.0 - n * UNIT_ROUNDOFF)
+
+
+@wp.func
+def safe_normalize(v: wp.vec3, fallback: wp.vec3) -> wp.vec3:
+    """v / |v|, or ``fallback`` when v is zero or not finite (degenerate triangles, v = -l)."""
+    length_sq = wp.dot(v, v)
+    if length_sq > 1.0e-30 and length_sq < 1.0e30:
+        return v / wp.sqrt(length_sq)
+    return fallback
+
+
+@wp.func
+def abs_vec3(v: wp.vec3) -> wp.vec3:
+    return wp.vec3(wp.abs(v[0]), wp.abs(v[1]), wp.abs(v[2]))
+
+
+@wp.func
+def barycentric_point_error(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, b0: float, b1: float, b2: float) -> wp.vec3:
+    """Bound on the rounding error of p = b0 p0 + b1 p1 + b2 p2 (pbrt-v4, Triangle::InteractionFromIntersection)."""
+    return gamma(7.0) * (abs_vec3(p0 * b0) + abs_vec3(p1 * b1) + abs_vec3(p2 * b2))
+
+
+@wp.func
+def offset_ray_origin(p: wp.vec3, p_error: wp.vec3, n: wp.vec3, w: wp.vec3) -> wp.vec3:
+    """Move p off its surface along the geometric normal n, to the side w points to, far enough
+    that rounding error cannot put it back on the surface (pbrt-v4 OffsetRayOrigin)."""
+    d = OFFSET_SAFETY * wp.dot(abs_vec3(n), p_error) + MIN_OFFSET
+    offset = n * d
+    if wp.dot(w, n) < 0.0:
+        offset = -offset
+    return p + offset
+
+
+@wp.func
+def finite_or_zero(v: wp.vec3) -> wp.vec3:
+    """NaN components become 0 and values are clamped to [0, RADIANCE_MAX] (Inf becomes the max)."""
+    out = wp.vec3(0.0)
+    for i in range(3):
+        x = v[i]
+        if x == x:
+            out[i] = wp.clamp(x, 0.0, RADIANCE_MAX)
+    return out

@@ -1,0 +1,48 @@
+"""The scene as Warp sees it: flat arrays of vertices, triangles, materials, textures and lights."""
+
+import warp as wp
+
+from .lights import LightData
+from .textures import TextureData
+
+wp.set_module_options({"enable_backward": False})
+
+NO_TEXTURE = wp.constant(-1)
+
+
+@wp.struct
+class MaterialData:
+    base_color: wp.vec4
+    emissive: wp.vec3
+    metallic: float
+    roughness: float
+    specular: float
+    normal_scale: float
+    alpha_cutoff: float
+    # 1 when back faces are shaded (glTF doubleSided), 0 when they are culled
+    double_sided: int
+    # 1 for glTF alphaMode MASK
+    alpha_mask: int
+    # indices into SceneData.textures, NO_TEXTURE when the slot is empty
+    base_color_texture: int
+    metallic_roughness_texture: int
+    normal_texture: int
+    emissive_texture: int
+
+
+@wp.struct
+class SceneData:
+    mesh: wp.uint64
+    positions: wp.array(dtype=wp.vec3)
+    indices: wp.array(dtype=wp.int32)
+    # zero-length normals mean "shade this vertex flat"
+    normals: wp.array(dtype=wp.vec3)
+    uvs: wp.array(dtype=wp.vec2)
+    tangents: wp.array(dtype=wp.vec4)
+    colors: wp.array(dtype=wp.vec4)
+    face_material: wp.array(dtype=wp.int32)
+    materials: wp.array(dtype=MaterialData)
+    textures: wp.array(dtype=TextureData)
+    texels: wp.array(dtype=wp.vec4)
+    lights: wp.array(dtype=LightData)
+    num_lights: int

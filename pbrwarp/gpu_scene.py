@@ -1,0 +1,219 @@
+"""Turning a Scene into the flat Warp arrays the kernels read (kernels/scene_data.py).
+
+Geometry (with its BVH) and texels are cached on the Scene and rebuilt only when its meshes or
+textures change; materials and lights are small and re-uploaded on every render, so editing a
+light or a material factor between renders takes effect without rebuilding anything.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from .errors import InputError
+from .lights import DIRECTIONAL, SPOT
+from .materials import Material
+from .textures import WRAP_MODES
+from pbrwarp.kernels.lights import LightData
+from pbrwarp.kernels.scene_data import MaterialData, SceneData
+from pbrwarp.kernels.textures import TextureData
+
+# Largest triangle and vertex counts the int32 indices of the kernels address.
+MAX_ELEMENTS = 2**31 - 1
+# glTF's smallest spot cone difference, which keeps cone_scale finite for inner == outer.
+MIN_CONE_COS_DIFFERENCE = 0.001
+
+
+@dataclass
+class _Geometry:
+    key: tuple
+    mesh: wp.Mesh
+    positions: wp.array
+    indices: wp.array
+    normals: wp.array
+    uvs: wp.array
+    tangents: wp.array
+    colors: wp.array
+    face_primitive: wp.array
+    uv_present: list
+
+
+@dataclass
+class _Texels:
+    key: tuple
+    slots: dict  # (id(texture), srgb) -> row in the texture table
+    table: wp.array
+    texels: wp.array
+
+
+@dataclass
+class GpuScene:
+    data: SceneData
+    num_lights: int
+    has_textures: bool
+    has_normal_maps: bool
+    has_pass_through: bool
+    # kept alive while ``data`` refers to them
+    _keep: tuple
+
+
+def _primitive_tangents(prim):
+    if prim.tangents is not None:
+        return prim.tangents
+    if prim.material.normal_texture is None or prim.uvs is None:
+        return np.zeros((len(prim.positions), 4))
+    from .tangents import generate_tangents
+
+    normals = prim.normals if prim.normals is not None else np.zeros_like(prim.positions)
+    return generate_tangents(prim.positions, normals, prim.uvs, prim.faces)
+
+
+def _build_geometry(prims, key) -> _Geometry:
+    counts = [len(p.positions) for p in prims]
+    total_vertices = sum(counts)
+    total_faces = sum(len(p.faces) for p in prims)
+    if total_vertices > MAX_ELEMENTS or total_faces * 3 > MAX_ELEMENTS:
+        raise InputError(f"scene too large: {total_vertices} vertices, {total_faces} triangles")
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    positions = np.concatenate([p.positions for p in prims]).astype(np.float32)
+    indices = np.concatenate([p.faces + s for p, s in zip(prims, starts)]).astype(np.int32).reshape(-1)
+    # Validated here a last time: an out-of-range index reaching Warp would crash the process.
+    if indices.min() < 0 or indices.max() >= total_vertices:
+        raise InputError("internal error: triangle index out of range after merging meshes")
+    if not np.all(np.isfinite(positions)):
+        raise InputError("a vertex position overflows float32 (|x| > 3.4e38)")
+
+    def column(attr, width, default):
+        parts = []
+        for p in prims:
+            value = getattr(p, attr) if attr != "tangents" else _primitive_tangents(p)
+            parts.append(np.full((len(p.positions), width), default, np.float64) if value is None else value)
+        return np.concatenate(parts).astype(np.float32)
+
+    normals = column("normals", 3, 0.0)
+    uvs = column("uvs", 2, 0.0)
+    tangents = column("tangents", 4, 0.0)
+    colors = column("colors", 4, 1.0)
+    face_primitive = np.concatenate([np.full(len(p.faces), i, np.int32) for i, p in enumerate(prims)])
+    wp_positions = wp.array(positions, dtype=wp.vec3, device="cpu")
+    wp_indices = wp.array(indices, dtype=wp.int32, device="cpu")
+    mesh = wp.Mesh(points=wp_positions, indices=wp_indices)
+    return _Geometry(
+        key=key,
+        mesh=mesh,
+        positions=wp_positions,
+        indices=wp_indices,
+        normals=wp.array(normals, dtype=wp.vec3, device="cpu"),
+        uvs=wp.array(uvs, dtype=wp.vec2, device="cpu"),
+        tangents=wp.array(tangents, dtype=wp.vec4, device="cpu"),
+        colors=wp.array(colors, dtype=wp.vec4, device="cpu"),
+        face_primitive=wp.array(face_primitive, dtype=wp.int32, device="cpu"),
+        uv_present=[p.uvs is not None for p in prims],
+    )
+
+
+def _build_texels(prims, key) -> _Texels:
+    slots, rows, chunks = {}, [], []
+    offset = 0
+    for prim in prims:
+        if prim.uvs is None:
+            continue
+        for _, tex, srgb in prim.material.textures():
+            slot_key = (id(tex), srgb)
+            if slot_key in slots:
+                continue
+            data = tex.texels(srgb)
+            h, w = data.shape[:2]
+            if offset + h * w > MAX_ELEMENTS:
+                raise InputError("textures too large: more than 2^31 texels in one scene")
+            m = tex.uv_matrix()
+            row = TextureData()
+            row.offset, row.width, row.height = offset, w, h
+            row.wrap_s, row.wrap_t = WRAP_MODES[tex.wrap_s], WRAP_MODES[tex.wrap_t]
+            row.uv_row0, row.uv_row1 = wp.vec3(*m[0]), wp.vec3(*m[1])
+            slots[slot_key] = len(rows)
+            rows.append(row)
+            chunks.append(data.reshape(-1, 4))
+            offset += h * w
+    texels = np.concatenate(chunks) if chunks else np.zeros((1, 4), np.float32)
+    return _Texels(
+        key=key,
+        slots=slots,
+        table=wp.array(rows if rows else [TextureData()], dtype=TextureData, device="cpu"),
+        texels=wp.array(texels, dtype=wp.vec4, device="cpu"),
+    )
+
+
+def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> MaterialData:
+    row = MaterialData()
+    row.base_color = wp.vec4(*mat.base_color)
+    row.emissive = wp.vec3(*mat.emissive)
+    row.metallic, row.roughness, row.specular = mat.metallic, mat.roughness, mat.specular
+    row.normal_scale, row.alpha_cutoff = mat.normal_scale, mat.alpha_cutoff
+    row.double_sided = int(mat.double_sided)
+    row.alpha_mask = int(mat.alpha_mode == "MASK")
+    slot_index = {slot: texture_slots[(id(tex), srgb)] if has_uvs else -1 for slot, tex, srgb in mat.textures()}
+    row.base_color_texture = slot_index.get("base_color_texture", -1)
+    row.metallic_roughness_texture = slot_index.get("metallic_roughness_texture", -1)
+    row.normal_texture = slot_index.get("normal_texture", -1)
+    row.emissive_texture = slot_index.get("emissive_texture", -1)
+    return row
+
+
+def _light_row(light) -> LightData:
+    row = LightData()
+    row.kind = light.kind
+    row.intensity = wp.vec3(*(np.asarray(light.color) * light.intensity))
+    row.position = wp.vec3(*getattr(light, "position", (0.0, 0.0, 0.0)))
+    row.direction = wp.vec3(*getattr(light, "direction", (0.0, -1.0, 0.0)))
+    row.cone_scale, row.cone_offset = 0.0, 1.0
+    if light.kind == SPOT:
+        cos_outer = math.cos(light.outer_cone)
+        # KHR_lights_punctual's recommended falloff
+        row.cone_scale = 1.0 / max(MIN_CONE_COS_DIFFERENCE, math.cos(light.inner_cone) - cos_outer)
+        row.cone_offset = -cos_outer * row.cone_scale
+    return row
+
+
+def upload(scene) -> GpuScene:
+    """The scene as a SceneData struct, reusing cached geometry and texels when unchanged."""
+    prims = list(scene.primitives)
+    if not prims:
+        raise InputError("the scene has no meshes: add one with scene.add_mesh(...) or load a file")
+    cache = scene.__dict__.setdefault("_gpu_cache", {})
+    geo_key = tuple(id(p) for p in prims)
+    geometry = cache.get("geometry")
+    if geometry is None or geometry.key != geo_key:
+        geometry = cache["geometry"] = _build_geometry(prims, geo_key)
+    tex_key = tuple((id(tex), srgb) for p in prims if p.uvs is not None for _, tex, srgb in p.material.textures())
+    texels = cache.get("texels")
+    if texels is None or texels.key != tex_key:
+        texels = cache["texels"] = _build_texels(prims, tex_key)
+    for prim in prims:
+        if prim.uvs is None and any(True for _ in prim.material.textures()):
+            warnings.warn(f"mesh {prim.name!r} has textures but no UVs: its textures are ignored", stacklevel=3)
+
+    materials = [_material_row(p.material, texels.slots, p.uvs is not None) for p in prims]
+    lights = [_light_row(light) for light in scene.lights]
+    data = SceneData()
+    data.mesh = geometry.mesh.id
+    data.positions, data.indices = geometry.positions, geometry.indices
+    data.normals, data.uvs, data.tangents, data.colors = geometry.normals, geometry.uvs, geometry.tangents, geometry.colors
+    data.face_material = geometry.face_primitive
+    data.materials = wp.array(materials, dtype=MaterialData, device="cpu")
+    data.textures, data.texels = texels.table, texels.texels
+    data.lights = wp.array(lights if lights else [LightData()], dtype=LightData, device="cpu")
+    data.num_lights = len(lights)
+    return GpuScene(
+        data=data,
+        num_lights=len(lights),
+        has_textures=any(m.base_color_texture >= 0 or m.metallic_roughness_texture >= 0 or m.emissive_texture >= 0
+                         or m.normal_texture >= 0 for m in materials),
+        has_normal_maps=any(m.normal_texture >= 0 for m in materials),
+        has_pass_through=any(not p.material.double_sided or p.material.alpha_mode == "MASK" for p in prims),
+        _keep=(geometry, texels, data.materials, data.lights),
+    )
