@@ -13,7 +13,7 @@ from .normal_mapping import perturb_normal
 from .robust import (
     RAY_FAR,
     SHADOW_RAY_SHORTENING,
-    barycentric_point_error,
+    triangle_hit_error,
     offset_ray_origin,
     safe_normalize,
 )
@@ -46,7 +46,7 @@ class SurfaceHit:
 
 @wp.func
 def surface_hit(scene: SceneData, face: int, u: float, v: float, ray_dir: wp.vec3) -> SurfaceHit:
-    """Hit point from barycentrics (Warp: p = p0 u + p1 v + p2 (1 - u - v)) with its error bound."""
+    """Hit point from barycentrics (Warp: p = p0 u + p1 v + p2 (1 - u - v)) and the error bound of a ray leaving it."""
     h = SurfaceHit()
     h.i0 = scene.indices[3 * face]
     h.i1 = scene.indices[3 * face + 1]
@@ -58,7 +58,7 @@ def surface_hit(scene: SceneData, face: int, u: float, v: float, ray_dir: wp.vec
     h.b1 = v
     h.b2 = 1.0 - u - v
     h.p = p0 * h.b0 + p1 * h.b1 + p2 * h.b2
-    h.p_error = barycentric_point_error(p0, p1, p2, h.b0, h.b1, h.b2)
+    h.p_error = triangle_hit_error(p0, p1, p2)
     ng = safe_normalize(wp.cross(p1 - p0, p2 - p0), -ray_dir)
     h.back_face = 0
     if wp.dot(ng, ray_dir) > 0.0:

@@ -43,9 +43,19 @@ def abs_vec3(v: wp.vec3) -> wp.vec3:
 
 
 @wp.func
-def barycentric_point_error(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, b0: float, b1: float, b2: float) -> wp.vec3:
-    """Bound on the rounding error of p = b0 p0 + b1 p1 + b2 p2 (pbrt-v4, Triangle::InteractionFromIntersection)."""
-    return gamma(7.0) * (abs_vec3(p0 * b0) + abs_vec3(p1 * b1) + abs_vec3(p2 * b2))
+def triangle_hit_error(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -> wp.vec3:
+    """Error bound, the same in every axis, for a point on triangle (p0, p1, p2) used as a ray origin.
+
+    pbrt-v4 bounds the rounding of p = b0 p0 + b1 p1 + b2 p2 by gamma(7) (|b0 p0| + |b1 p1| +
+    |b2 p2|) per axis, and its own ray-triangle test rejects hits with t inside the test's error.
+    Warp's test has no such check, and it works in a sheared space whose z axis is the ray
+    direction, so its rounding mixes all axes and scales with the vertex magnitudes, not with the
+    barycentric weights: a flat triangle at z = 0 has zero pbrt error in z yet reports t ~ 0
+    self-hits for grazing rays. The bound used here is therefore gamma(7) times the largest
+    component of |p0| + |p1| + |p2|, applied in every axis.
+    """
+    s = abs_vec3(p0) + abs_vec3(p1) + abs_vec3(p2)
+    return wp.vec3(gamma(7.0) * wp.max(s[0], wp.max(s[1], s[2])))
 
 
 @wp.func
