@@ -1,0 +1,137 @@
+"""Sampling, texture filtering and tone mapping kernels against their definitions."""
+
+import math
+
+import numpy as np
+import pytest
+import warp as wp
+
+import pbrwarp as pw
+from pbrwarp.kernels.sampling import multi_jittered_sample
+from pbrwarp.kernels.textures import TextureData, sample_texture
+
+import reference as ref
+
+
+@wp.kernel(enable_backward=False)
+def draw_samples(m: int, n: int, seed: int, out: wp.array(dtype=wp.vec2)):
+    s = wp.tid()
+    out[s] = multi_jittered_sample(s, m, n, seed)
+
+
+@pytest.mark.parametrize("m,n", [(1, 1), (2, 2), (2, 3), (4, 4), (1, 7), (16, 16)])
+@pytest.mark.parametrize("seed", [0, 17, 123456])
+def test_multi_jittered_samples_are_stratified(m, n, seed):
+    out = wp.zeros(m * n, dtype=wp.vec2)
+    wp.launch(draw_samples, dim=m * n, inputs=[m, n, seed, out])
+    xy = out.numpy().astype(np.float64)
+    N = m * n
+    assert np.all((xy >= 0) & (xy < 1))
+    # one sample per cell of the m x n grid, and one per each of the N strips in x and in y
+    cells = np.floor(xy[:, 0] * m).astype(int) + m * np.floor(xy[:, 1] * n).astype(int)
+    assert sorted(cells) == list(range(N))
+    assert sorted(np.floor(xy[:, 0] * N).astype(int)) == list(range(N))
+    assert sorted(np.floor(xy[:, 1] * N).astype(int)) == list(range(N))
+
+
+@wp.kernel(enable_backward=False)
+def sample_at(tex: TextureData, texels: wp.array(dtype=wp.vec4), uv: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.vec4)):
+    i = wp.tid()
+    out[i] = sample_texture(tex, texels, uv[i])
+
+
+def bilinear_reference(img, u, v, wrap):
+    """Bilinear filtering with texel centres at half-integers; wrap: 0 repeat, 1 clamp, 2 mirror."""
+    h, w = img.shape[:2]
+
+    def index(i, size):
+        if wrap == 1:
+            return np.clip(i, 0, size - 1)
+        if wrap == 2:
+            k = np.mod(i, 2 * size)
+            return np.where(k >= size, 2 * size - 1 - k, k)
+        return np.mod(i, size)
+
+    x, y = u * w - 0.5, v * h - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    xa, xb = index(x0.astype(np.int64), w), index(x0.astype(np.int64) + 1, w)
+    ya, yb = index(y0.astype(np.int64), h), index(y0.astype(np.int64) + 1, h)
+    return ((img[ya, xa] * (1 - fx) + img[ya, xb] * fx) * (1 - fy) + (img[yb, xa] * (1 - fx) + img[yb, xb] * fx) * fy)
+
+
+def texture_row(w, h, wrap):
+    row = TextureData()
+    row.offset, row.width, row.height, row.wrap_s, row.wrap_t = 0, w, h, wrap, wrap
+    row.uv_row0, row.uv_row1 = wp.vec3(1, 0, 0), wp.vec3(0, 1, 0)
+    return row
+
+
+@pytest.mark.parametrize("wrap", [0, 1, 2])
+@pytest.mark.parametrize("size", [(1, 1), (3, 5), (7, 4)])
+def test_bilinear_sampling_and_wrap_modes(wrap, size):
+    rng = np.random.default_rng(5)
+    w, h = size
+    img = rng.uniform(0, 1, (h, w, 4))
+    uv = rng.uniform(-3, 4, (2000, 2))
+    out = wp.zeros(len(uv), dtype=wp.vec4)
+    wp.launch(sample_at, dim=len(uv), inputs=[texture_row(w, h, wrap), wp.array(img.reshape(-1, 4).astype(np.float32), dtype=wp.vec4),
+                                              wp.array(uv.astype(np.float32), dtype=wp.vec2), out])
+    want = bilinear_reference(img, uv[:, 0].astype(np.float32).astype(np.float64), uv[:, 1].astype(np.float32).astype(np.float64), wrap)
+    np.testing.assert_allclose(out.numpy(), want, atol=2e-5)
+
+
+@pytest.mark.parametrize("wrap", [0, 1, 2])
+def test_huge_and_nan_uvs_stay_in_bounds_and_finite(wrap):
+    img = np.random.default_rng(1).uniform(0, 1, (4, 4, 4))
+    uv = np.array([[1e6, -1e6], [3e9, 1e12], [np.nan, 0.5], [np.inf, -np.inf], [0.5, np.nan]], np.float32)
+    out = wp.zeros(len(uv), dtype=wp.vec4)
+    wp.launch(sample_at, dim=len(uv), inputs=[texture_row(4, 4, wrap), wp.array(img.reshape(-1, 4).astype(np.float32), dtype=wp.vec4),
+                                              wp.array(uv, dtype=wp.vec2), out])
+    got = out.numpy()
+    assert np.all(np.isfinite(got))
+    assert np.all((got >= img.min(axis=(0, 1)) - 1e-6) & (got <= img.max(axis=(0, 1)) + 1e-6))
+
+
+def frame_of(rgb):
+    rgb = np.asarray(rgb, np.float32).reshape(1, -1, 3)
+    n = rgb.shape[1]
+    return pw.Frame(rgb=rgb, depth=np.zeros((1, n), np.float32), normal=np.zeros((1, n, 3), np.float32),
+                    alpha=np.ones((1, n), np.float32))
+
+
+def test_tonemap_none_is_srgb_encoding():
+    x = np.linspace(0, 1, 257)
+    rgb = np.stack([x, x, x], -1)
+    got = frame_of(rgb).to_srgb8(tonemap="none")[0, :, 0]
+    want = np.floor(ref.srgb_encode(x) * 255 + 0.5)
+    assert np.max(np.abs(got.astype(int) - want)) <= 1  # float32 vs float64 rounding at .5 boundaries
+
+
+def test_exposure_is_in_stops():
+    a = frame_of([[0.1, 0.1, 0.1]]).to_srgb8(exposure=1.0, tonemap="none")
+    b = frame_of([[0.2, 0.2, 0.2]]).to_srgb8(exposure=0.0, tonemap="none")
+    assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("tonemap", ["none", "reinhard", "aces"])
+def test_tonemaps_map_inf_and_huge_to_white_and_nan_to_black(tonemap):
+    rgb = [[np.inf, np.inf, np.inf], [1e30, 1e30, 1e30], [np.nan, np.nan, np.nan], [0, 0, 0], [-1, -1, -1]]
+    out = frame_of(rgb).to_srgb8(tonemap=tonemap)[0]
+    assert np.all(out[0] >= 254) and np.all(out[1] >= 254)
+    assert np.all(out[2] == 0) and np.all(out[3] == 0) and np.all(out[4] == 0)
+
+
+@pytest.mark.parametrize("tonemap", ["reinhard", "aces"])
+def test_tonemaps_are_monotonic(tonemap):
+    x = np.geomspace(1e-4, 1e4, 400)
+    out = frame_of(np.stack([x, x, x], -1)).to_srgb8(tonemap=tonemap)[0, :, 0].astype(int)
+    assert np.all(np.diff(out) >= 0)
+    assert out[0] <= 2 and out[-1] >= 250
+
+
+def test_reinhard_matches_definition():
+    x = np.array([0.05, 0.5, 2.0, 10.0])
+    out = frame_of(np.stack([x, x, x], -1)).to_srgb8(tonemap="reinhard")[0, :, 0].astype(int)
+    want = np.floor(ref.srgb_encode(x / (1 + x)) * 255 + 0.5)
+    assert np.max(np.abs(out - want)) <= 1
