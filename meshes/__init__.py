@@ -1,0 +1,308 @@
+"""Procedural scenes for the demo, the tests and the benchmarks.
+
+>>> from pbrwarp.meshes import demo_scene
+>>> scene, camera = demo_scene()
+>>> pw.render(scene, camera, 960, 540, spp=4).save("demo.png")
+
+- :func:`sphere_grid`: the metallic x roughness sphere sweep of LearnOpenGL's PBR chapter.
+- :func:`brick_textures`: a tileable brick base-colour texture and its tangent-space normal map.
+- :func:`normal_mapped_torus` / :func:`normal_mapped_tile`: textured, normal-mapped primitives
+  with analytic normals and tangents.
+- :func:`demo_scene`: both of the above, lit and framed.
+- :func:`icosphere`, :func:`bunny`, :func:`mesh_scene`: meshes of known size for benchmarks.
+
+Conventions are pbrwarp's (glTF's): +Y up, UV (0, 0) at the top-left of the image, normal maps
+with +X right and +Y (green) *up* in the image, bitangent = cross(normal, tangent.xyz) * w.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+import pbrwarp as pw
+
+__all__ = [
+    "ASSETS", "DEMO_BACKGROUND", "brick_textures", "bunny", "demo_scene", "height_to_normal_map", "icosphere",
+    "mesh_scene", "normal_mapped_tile", "normal_mapped_torus", "sphere_grid",
+]
+
+# Shared assets live beside the repository, not in it: <repo>/../shared/assets.
+ASSETS = Path(__file__).resolve().parents[1].parent / "shared" / "assets"
+
+# Background radiance the demo is meant to be rendered over (``pbrwarp demo`` uses it): a
+# near-black blue-grey, so the smooth metals (black but for their highlights) keep a silhouette.
+DEMO_BACKGROUND = (0.012, 0.014, 0.02)
+
+# LearnOpenGL clamps the smoothest column to roughness 0.05: a perfectly smooth sphere under
+# punctual lights reflects each light into a sub-pixel point, so its column would look empty.
+MIN_GRID_ROUGHNESS = 0.05
+
+
+# ---------------------------------------------------------------------- sphere grid
+def icosphere(subdivisions: int = 4, radius: float = 1.0):
+    """A ``trimesh`` icosphere (20 * 4^subdivisions triangles) centred at the origin."""
+    import trimesh
+
+    if isinstance(subdivisions, bool) or not isinstance(subdivisions, (int, np.integer)) or subdivisions < 0:
+        raise pw.InputError(f"icosphere subdivisions must be a whole number >= 0, got {subdivisions!r}")
+    return trimesh.creation.icosphere(subdivisions=int(subdivisions), radius=float(radius))
+
+
+def sphere_grid(rows: int = 7, cols: int = 7, base_color=(0.9, 0.9, 0.9), subdivisions: int = 4,
+                spacing: float = 2.5, radius: float = 1.0, min_roughness: float = MIN_GRID_ROUGHNESS) -> pw.Scene:
+    """Unit spheres on a ``rows`` x ``cols`` grid in the z = 0 plane, centred at the origin and
+    facing +z, one :class:`pw.Material` each: metallic grows from 0 (bottom row) to 1 (top row),
+    roughness from 0 (left column, clamped to ``min_roughness``) to 1 (right column), as in
+    LearnOpenGL's "PBR / Lighting" chapter. No lights: callers add their own.
+    """
+    for name, value in (("rows", rows), ("cols", cols)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise pw.InputError(f"sphere_grid {name} must be a whole number >= 1, got {value!r}")
+    spacing = float(spacing)
+    if not math.isfinite(spacing) or spacing <= 0.0:
+        raise pw.InputError(f"sphere_grid spacing must be > 0, got {spacing}")
+    sphere = icosphere(subdivisions, radius)
+    # Shared geometry: normals straight from the sphere (exact), no crease splitting needed.
+    normals = sphere.vertices / np.linalg.norm(sphere.vertices, axis=1, keepdims=True)
+    scene = pw.Scene()
+    for row in range(rows):
+        metallic = row / (rows - 1) if rows > 1 else 0.0
+        for col in range(cols):
+            roughness = max(col / (cols - 1) if cols > 1 else 0.5, min_roughness)
+            material = pw.Material(base_color=base_color, metallic=metallic, roughness=roughness,
+                                   name=f"metallic {metallic:.2f} roughness {roughness:.2f}")
+            offset = np.array([(col - (cols - 1) / 2) * spacing, (row - (rows - 1) / 2) * spacing, 0.0])
+            scene.add_mesh(pw.Primitive(sphere.vertices + offset, sphere.faces, material, normals,
+                                        name=f"sphere r{row} c{col}"))
+    return scene
+
+
+# ---------------------------------------------------------------------- textures
+def _box_blur(a: np.ndarray, radius: int) -> np.ndarray:
+    """Separable periodic box blur (the textures tile, so their filters wrap around too)."""
+    if radius <= 0:
+        return a
+    for axis in (0, 1):
+        acc = np.zeros_like(a)
+        for k in range(-radius, radius + 1):
+            acc += np.roll(a, k, axis=axis)
+        a = acc / (2 * radius + 1)
+    return a
+
+
+def height_to_normal_map(height: np.ndarray, strength: float = 1.0) -> np.ndarray:
+    """A tangent-space normal map (uint8 RGB, glTF/OpenGL convention: +X right, +Y up in the
+    image, i.e. green grows where the surface faces the top of the image) from a height field
+    given in texel units, by periodic central differences.
+
+    ``strength`` scales the heights: a slope of one height unit per texel tilts the normal by
+    ``atan(strength)``.
+    """
+    h = np.asarray(height, dtype=np.float64)
+    if h.ndim != 2:
+        raise pw.InputError(f"height field must be 2-D, got shape {h.shape}")
+    dh_dx = 0.5 * (np.roll(h, -1, axis=1) - np.roll(h, 1, axis=1))  # along +u (right)
+    dh_drow = 0.5 * (np.roll(h, -1, axis=0) - np.roll(h, 1, axis=0))  # along +v (down the image)
+    # Image "up" is -row, so dh/dup = -dh/drow; the normal of z = h(x, up) is (-dh/dx, -dh/dup, 1).
+    n = np.stack([-strength * dh_dx, strength * dh_drow, np.ones_like(h)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.round((n * 0.5 + 0.5) * 255.0).astype(np.uint8)
+
+
+def brick_textures(size: int = 512, courses: int = 8, bricks_per_course: int = 4, seed: int = 7,
+                   strength: float = 1.0):
+    """A seamlessly tiling running-bond brick wall: ``(base_color, normal_map, height)`` with
+    ``base_color`` an sRGB uint8 (size, size, 3) array, ``normal_map`` uint8 RGB from
+    :func:`height_to_normal_map` and ``height`` float in [0, 1] (1 = brick face, 0 = mortar).
+    ``strength`` is the steepness of the rounded brick edges: 1 tilts their normals by 45 degrees
+    on average (56 at the steepest).
+    """
+    if size < 16 or size % courses or size % (2 * bricks_per_course):
+        raise pw.InputError("brick_textures size must be >= 16 and divisible by courses and 2 * bricks_per_course")
+    rng = np.random.default_rng(seed)
+    brick_h = size // courses
+    brick_w = size // bricks_per_course
+    mortar = max(2.0, size / 128.0)  # half-width of a mortar joint, in texels
+    bevel = max(2.0, size / 64.0)    # width of the rounded brick edge
+
+    y, x = np.mgrid[0:size, 0:size].astype(np.float64) + 0.5
+    course = (y // brick_h).astype(int)
+    xs = (x + (course % 2) * (brick_w / 2)) % size  # every other course shifted half a brick
+    brick = (xs // brick_w).astype(int)
+    brick_id = course * bricks_per_course + brick
+    lx, ly = xs % brick_w, y % brick_h
+    edge = np.minimum(np.minimum(lx, brick_w - lx), np.minimum(ly, brick_h - ly))  # to the joint centre
+    t = np.clip((edge - mortar) / bevel, 0.0, 1.0)
+    bump = t * t * (3.0 - 2.0 * t)  # smoothstep: rounded brick edges
+
+    # per-brick tilt and surface grain, so the faces are not perfectly flat
+    n_bricks = courses * bricks_per_course
+    tilt = rng.normal(0.0, 0.015, size=(n_bricks, 2))
+    grain = _box_blur(rng.normal(0.0, 1.0, size=(size, size)), 2)
+    grain /= grain.std()
+    height = bump * (0.9 + tilt[brick_id, 0] * (lx - brick_w / 2) / 8 + tilt[brick_id, 1] * (ly - brick_h / 2) / 8)
+    height += 0.04 * grain * np.where(bump > 0.5, 1.0, 2.0)  # mortar is rougher than brick
+    height = _box_blur(height, 1)
+    height = (height - height.min()) / (height.max() - height.min())
+
+    # colours (sRGB): red-brown bricks varying brick to brick, light grey mortar
+    hue = rng.uniform(-1.0, 1.0, size=(n_bricks, 3)) * np.array([22.0, 12.0, 8.0])
+    brick_rgb = np.array([150.0, 62.0, 44.0]) + hue[brick_id] * rng.uniform(0.6, 1.0)
+    brick_rgb *= (0.82 + 0.18 * bump)[..., None]  # darker, worn edges
+    mortar_rgb = np.array([160.0, 155.0, 145.0])
+    speckle = _box_blur(rng.normal(0.0, 1.0, size=(size, size)), 1)
+    colour = mortar_rgb + (brick_rgb - mortar_rgb) * bump[..., None]
+    colour *= (1.0 + 0.06 * speckle)[..., None]
+    base_color = np.clip(np.round(colour), 0, 255).astype(np.uint8)
+
+    normal_map = height_to_normal_map(height * bevel, strength=strength)  # heights in texels
+    return base_color, normal_map, height.astype(np.float32)
+
+
+def brick_material(size: int = 512, roughness: float = 0.75, normal_scale: float = 1.0) -> pw.Material:
+    """A dielectric :class:`pw.Material` with :func:`brick_textures` as base colour and normal map."""
+    base_color, normal_map, _ = brick_textures(size)
+    return pw.Material(base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=roughness,
+                       base_color_texture=pw.Texture(base_color), normal_texture=pw.Texture(normal_map),
+                       normal_scale=normal_scale, name="bricks")
+
+
+# ---------------------------------------------------------------------- normal-mapped models
+def _grid_faces(n_u: int, n_v: int) -> np.ndarray:
+    """Two triangles per cell of an (n_v + 1) x (n_u + 1) vertex grid (row-major, u fastest)."""
+    i, j = np.meshgrid(np.arange(n_u), np.arange(n_v))
+    a = (j * (n_u + 1) + i).ravel()
+    b, c, d = a + 1, a + (n_u + 1), a + (n_u + 2)
+    return np.concatenate([np.stack([a, c, b], 1), np.stack([b, c, d], 1)])
+
+
+def _glTF_tangents(normals, dp_du, dp_dv) -> np.ndarray:
+    """Tangents (V, 4): xyz = dP/du made unit and perpendicular to the normal, w chosen so that
+    cross(n, t) w points along -dP/dv (towards the top of the image, glTF)."""
+    t = dp_du - normals * np.sum(dp_du * normals, axis=1, keepdims=True)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    w = np.sign(np.sum(np.cross(normals, t) * -dp_dv, axis=1))
+    w[w == 0] = 1.0
+    return np.column_stack([t, w])
+
+
+def _orient_faces(positions, faces, normals) -> np.ndarray:
+    """``faces`` wound counter-clockwise seen from the side the vertex normals point to."""
+    p0, p1, p2 = (positions[faces[:, k]] for k in range(3))
+    geometric = np.cross(p1 - p0, p2 - p0)
+    mean_n = normals[faces].sum(axis=1)
+    flip = np.sum(geometric * mean_n, axis=1) < 0
+    out = faces.copy()
+    out[flip] = out[flip][:, ::-1]
+    return out
+
+
+def normal_mapped_torus(major_radius: float = 2.0, minor_radius: float = 0.85, segments: int = 160,
+                        rings: int = 64, repeats=(3, 1), material: pw.Material | None = None) -> pw.Primitive:
+    """A torus around the +Y axis with UVs, analytic normals and tangents, and (by default) the
+    brick material of :func:`brick_material`. ``repeats``: (around the ring, around the tube)
+    texture repetitions; whole numbers keep the seams invisible."""
+    phi = np.linspace(0.0, 2.0 * math.pi, segments + 1)   # around the Y axis -> u
+    theta = np.linspace(0.0, 2.0 * math.pi, rings + 1)    # around the tube -> v
+    ph, th = np.meshgrid(phi, theta)                       # shape (rings + 1, segments + 1)
+    ph, th = ph.ravel(), th.ravel()
+    radial = np.column_stack([np.cos(ph), np.zeros_like(ph), -np.sin(ph)])
+    d_radial = np.column_stack([-np.sin(ph), np.zeros_like(ph), -np.cos(ph)])
+    up = np.array([0.0, 1.0, 0.0])
+    ring = major_radius + minor_radius * np.cos(th)
+    positions = radial * ring[:, None] + up * (minor_radius * np.sin(th))[:, None]
+    normals = radial * np.cos(th)[:, None] + up * np.sin(th)[:, None]
+    ru, rv = repeats
+    uvs = np.column_stack([ph / (2 * math.pi) * ru, th / (2 * math.pi) * rv])
+    dp_du = d_radial * ring[:, None]                                              # * dphi/du > 0
+    dp_dv = -radial * (minor_radius * np.sin(th))[:, None] + up * (minor_radius * np.cos(th))[:, None]
+    tangents = _glTF_tangents(normals, dp_du, dp_dv)
+    faces = _orient_faces(positions, _grid_faces(segments, rings), normals)
+    return pw.Primitive(positions, faces, material or brick_material(), normals, uvs, tangents,
+                        name="brick torus")
+
+
+def normal_mapped_tile(size: float = 4.0, repeats: float = 1.0, material: pw.Material | None = None) -> pw.Primitive:
+    """A ``size`` x ``size`` square in the z = 0 plane facing +z, with the texture upright as
+    seen from +z (UV (0, 0) at the top-left corner), tangent +x and bitangent +y (w = +1)."""
+    h = size / 2.0
+    positions = np.array([[-h, h, 0.0], [h, h, 0.0], [-h, -h, 0.0], [h, -h, 0.0]])
+    uvs = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]) * repeats
+    normals = np.tile([0.0, 0.0, 1.0], (4, 1))
+    tangents = np.tile([1.0, 0.0, 0.0, 1.0], (4, 1))
+    faces = np.array([[0, 2, 1], [1, 2, 3]])
+    return pw.Primitive(positions, faces, material or brick_material(), normals, uvs, tangents, name="brick tile")
+
+
+# ---------------------------------------------------------------------- demo
+def _rotation(axis, angle):
+    axis = np.asarray(axis, dtype=np.float64)
+    axis /= np.linalg.norm(axis)
+    x, y, z = axis
+    c, s = math.cos(angle), math.sin(angle)
+    r = np.array([[c + x * x * (1 - c), x * y * (1 - c) - z * s, x * z * (1 - c) + y * s],
+                  [y * x * (1 - c) + z * s, c + y * y * (1 - c), y * z * (1 - c) - x * s],
+                  [z * x * (1 - c) - y * s, z * y * (1 - c) + x * s, c + z * z * (1 - c)]])
+    m = np.eye(4)
+    m[:3, :3] = r
+    return m
+
+
+def _translation(offset):
+    m = np.eye(4)
+    m[:3, 3] = offset
+    return m
+
+
+def demo_scene() -> tuple[pw.Scene, pw.Camera]:
+    """The 7 x 7 sphere grid (gold-coloured, so metals are told apart from dielectrics by their
+    tinted highlights), a brick torus standing to its right, a warm directional key light
+    (3 lux) and two point lights in front; framed for a 16:9 image. Meant to be rendered over
+    :data:`DEMO_BACKGROUND` with the default ACES tone map."""
+    scene = sphere_grid(base_color=(0.9, 0.6, 0.2))
+    torus = normal_mapped_torus(major_radius=2.3, minor_radius=1.0)
+    # stand the torus up (its hole facing the camera, turned 35 degrees to show its depth)
+    transform = _translation((12.4, -0.5, 1.5)) @ _rotation((0, 1, 0), math.radians(-35.0)) @ _rotation((1, 0, 0), math.radians(80.0))
+    scene.add_mesh(torus, transform=transform)
+    scene.add_light(pw.DirectionalLight(direction=(-0.35, -0.45, -1.0), color=(1.0, 0.95, 0.88), intensity=3.0))
+    scene.add_light(pw.PointLight(position=(-10.0, 9.0, 10.0), color=(0.85, 0.9, 1.0), intensity=180.0))
+    scene.add_light(pw.PointLight(position=(14.0, -6.0, 9.0), intensity=120.0))
+
+    camera = pw.Camera.look_at(eye=(2.9, 0.0, 30.0), target=(2.9, 0.0, 0.0), fov_y=36.0)
+    return scene, camera
+
+
+# ---------------------------------------------------------------------- benchmark meshes
+def asset(relative: str) -> Path:
+    """The path of a shared asset (``meshes/bunny-decimated.off`` etc.); AssetNotFoundError if missing."""
+    path = ASSETS / relative
+    if not path.is_file():
+        raise pw.AssetNotFoundError(f"shared asset not found: {path} (expected under {ASSETS})")
+    return path
+
+
+def bunny(decimated: bool = True):
+    """The Stanford bunny as a ``trimesh.Trimesh``: the decimated OFF (fast) or the full OBJ.
+    Raises :class:`pw.AssetNotFoundError` when the shared assets are not installed."""
+    import trimesh
+
+    path = asset("meshes/bunny-decimated.off" if decimated else "meshes/stanford-bunny.obj")
+    try:
+        mesh = trimesh.load(path, force="mesh", process=True)
+    except Exception as err:  # trimesh raises many types for corrupt files
+        raise pw.AssetFormatError(f"cannot read {path}: {type(err).__name__}: {err}") from None
+    return mesh
+
+
+def mesh_scene(mesh, material: pw.Material | None = None, fov_y: float = 40.0) -> tuple[pw.Scene, pw.Camera]:
+    """One mesh (a ``trimesh.Trimesh`` or :class:`pw.Primitive`) with a 3 lux key light from over
+    the camera's shoulder and a camera framing it: a ready-made benchmark scene."""
+    scene = pw.Scene()
+    scene.add_mesh(mesh, material or pw.Material(base_color=(0.8, 0.8, 0.8), roughness=0.4))
+    camera = pw.Camera.frame(scene, fov_y=fov_y)
+    forward, up, right = (np.asarray(v) for v in (camera.forward, camera.up, camera.right))
+    scene.add_light(pw.DirectionalLight(direction=tuple(forward - 0.7 * up - 0.4 * right), intensity=3.0))
+    return scene, camera
