@@ -1,0 +1,366 @@
+"""The ``pbrwarp`` command line.
+
+    pbrwarp render model.glb -o out.png --size 1280x720 --spp 4 --light dir:-1,-1,-1:3
+    pbrwarp demo -o demo.png
+
+Bad input (a missing file, a malformed option, a value out of range) prints one line,
+``pbrwarp: error: <message>``, to stderr and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import sys
+
+import numpy as np
+
+from .camera import Camera
+from .errors import InputError, PbrwarpError
+from .lights import DirectionalLight, PointLight, SpotLight
+
+PROG = "pbrwarp"
+EXIT_USAGE = 2
+MAX_SIDE = 16384  # largest image side accepted from the command line
+DEFAULT_KEY_LUX = 3.0
+
+LIGHT_HELP = """\
+light specs (--light may repeat; lights from the file are kept):
+  point:X,Y,Z:CANDELA[:R,G,B]                      point light at X,Y,Z
+  dir:DX,DY,DZ:LUX[:R,G,B]                         directional light travelling along DX,DY,DZ
+  spot:X,Y,Z:DX,DY,DZ:CANDELA[:INNER,OUTER[:R,G,B]] spot light, cone half-angles in degrees
+                                                   (default 0,45)
+  colours are linear RGB, e.g. 1,0.9,0.8; "directional" is accepted for "dir".
+examples:
+  --light dir:-1,-1,-1:3   --light point:0,4,3:50:1,0.8,0.6   --light spot:0,5,0:0,-1,0:200:20,30
+"""
+
+
+class UsageError(Exception):
+    """A command-line value that cannot be used; the message is shown as is."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises instead of printing usage and exiting, so every error is one line."""
+
+    def error(self, message):
+        raise UsageError(message)
+
+
+# ---------------------------------------------------------------------- value parsers
+def _numbers(text: str, count: int | tuple, what: str, example: str) -> list[float]:
+    counts = (count,) if isinstance(count, int) else count
+    parts = text.split(",")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = None
+    if values is None or len(values) not in counts or not all(math.isfinite(v) for v in values):
+        n = " or ".join(map(str, counts))
+        raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected {n} comma-separated finite numbers, e.g. {example}")
+    return values
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """'WxH' -> (W, H), both whole numbers in 1..MAX_SIDE."""
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    if not m:
+        raise argparse.ArgumentTypeError(f"invalid size {text!r}: expected WIDTHxHEIGHT in pixels, e.g. 640x480")
+    w, h = int(m.group(1)), int(m.group(2))
+    if not (1 <= w <= MAX_SIDE and 1 <= h <= MAX_SIDE):
+        raise argparse.ArgumentTypeError(
+            f"invalid size {text!r}: width and height must be whole numbers from 1 to {MAX_SIDE}, e.g. 640x480")
+    return w, h
+
+
+def _positive_int(what: str):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = 0
+        if value < 1:
+            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected a whole number >= 1")
+        return value
+
+    return parse
+
+
+def _finite_float(what: str):
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected a finite number")
+        return value
+
+    return parse
+
+
+def parse_fov(text: str) -> float:
+    value = _finite_float("field of view")(text)
+    if not 0.0 < value < 180.0:
+        raise argparse.ArgumentTypeError(f"invalid field of view {text!r}: expected degrees strictly between 0 and 180")
+    return value
+
+
+def parse_camera(text: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """'ex,ey,ez,tx,ty,tz' -> (eye, target)."""
+    v = _numbers(text, 6, "camera", "0,1,5,0,0,0 (eye x,y,z then target x,y,z)")
+    eye, target = tuple(v[:3]), tuple(v[3:])
+    if eye == target:
+        raise argparse.ArgumentTypeError(f"invalid camera {text!r}: the eye and the target must differ")
+    return eye, target
+
+
+def parse_colour(text: str) -> tuple[float, float, float]:
+    v = _numbers(text, 3, "colour", "0.1,0.1,0.1 (linear RGB)")
+    if any(c < 0 for c in v):
+        raise argparse.ArgumentTypeError(f"invalid colour {text!r}: components must be >= 0")
+    return tuple(v)
+
+
+def parse_light(spec: str):
+    """A light from 'point:...', 'dir:...' or 'spot:...' (see LIGHT_HELP)."""
+    fields = spec.split(":")
+    kind = fields[0].strip().lower()
+
+    def bad(reason: str):
+        return argparse.ArgumentTypeError(f"invalid light {spec!r}: {reason}")
+
+    def intensity(text: str, unit: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise bad(f"intensity {text!r} is not a number ({unit})") from None
+        if not math.isfinite(value) or value < 0:
+            raise bad(f"intensity must be a finite number >= 0 ({unit}), got {text}")
+        return value
+
+    try:
+        if kind == "point":
+            if len(fields) not in (3, 4):
+                raise bad("expected point:X,Y,Z:CANDELA[:R,G,B]")
+            colour = parse_colour(fields[3]) if len(fields) == 4 else (1.0, 1.0, 1.0)
+            return PointLight(position=_numbers(fields[1], 3, "position", "0,4,3"), color=colour,
+                              intensity=intensity(fields[2], "candela"))
+        if kind in ("dir", "directional"):
+            if len(fields) not in (3, 4):
+                raise bad("expected dir:DX,DY,DZ:LUX[:R,G,B]")
+            direction = _numbers(fields[1], 3, "direction", "-1,-1,-1")
+            if not any(direction):
+                raise bad("the direction must not be 0,0,0")
+            colour = parse_colour(fields[3]) if len(fields) == 4 else (1.0, 1.0, 1.0)
+            return DirectionalLight(direction=direction, color=colour, intensity=intensity(fields[2], "lux"))
+        if kind == "spot":
+            if len(fields) not in (4, 5, 6):
+                raise bad("expected spot:X,Y,Z:DX,DY,DZ:CANDELA[:INNER,OUTER[:R,G,B]]")
+            direction = _numbers(fields[2], 3, "direction", "0,-1,0")
+            if not any(direction):
+                raise bad("the direction must not be 0,0,0")
+            inner, outer = 0.0, 45.0
+            if len(fields) >= 5:
+                inner, outer = _numbers(fields[4], 2, "cone angles", "20,30 (inner, outer half-angles in degrees)")
+                if not 0.0 <= inner <= outer <= 90.0:
+                    raise bad(f"cone angles must satisfy 0 <= INNER <= OUTER <= 90 degrees, got {inner:g},{outer:g}")
+            colour = parse_colour(fields[5]) if len(fields) == 6 else (1.0, 1.0, 1.0)
+            return SpotLight(position=_numbers(fields[1], 3, "position", "0,5,0"), direction=direction,
+                             color=colour, intensity=intensity(fields[3], "candela"),
+                             inner_cone=math.radians(inner), outer_cone=math.radians(outer))
+    except argparse.ArgumentTypeError as err:
+        message = str(err)
+        if message.startswith("invalid light"):
+            raise
+        raise bad(message.removeprefix("invalid ")) from None
+    except PbrwarpError as err:
+        raise bad(str(err)) from None
+    raise bad(f"unknown light type {kind!r}: expected point, dir or spot")
+
+
+# ---------------------------------------------------------------------- argument parser
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog=PROG, description="Physically based rendering of triangle meshes on the CPU (NVIDIA Warp).")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    def output_options(p, default_size, default_spp):
+        p.add_argument("-o", "--output", required=True, metavar="OUT",
+                       help="output image; the extension picks the format (.png, .jpg, ... tone mapped; "
+                            ".npy: linear float32 RGBA)")
+        p.add_argument("--size", type=parse_size, default=default_size, metavar="WxH",
+                       help=f"image size in pixels (default {default_size[0]}x{default_size[1]})")
+        p.add_argument("--spp", type=_positive_int("samples per pixel"), default=default_spp, metavar="N",
+                       help=f"samples per pixel (default {default_spp})")
+        p.add_argument("--tonemap", choices=("none", "reinhard", "aces"), default="aces",
+                       help="tone map for 8-bit output (default aces)")
+        p.add_argument("--exposure", type=_finite_float("exposure"), default=0.0, metavar="EV",
+                       help="exposure in stops: radiance is scaled by 2^EV (default 0)")
+        p.add_argument("--no-shadows", dest="shadows", action="store_false", help="skip shadow rays")
+        p.add_argument("--threads", type=_positive_int("thread count"), default=None, metavar="N",
+                       help="worker threads (default: every core)")
+        p.add_argument("--background", type=parse_colour, default=None, metavar="R,G,B",
+                       help="linear radiance where no surface is hit (default 0,0,0)")
+        p.add_argument("--transparent", action="store_true",
+                       help="write coverage as alpha (PNG, WebP, TIFF) instead of the background")
+
+    render = sub.add_parser("render", help="render a scene file (.glb .gltf .obj .ply .stl .off)",
+                            formatter_class=argparse.RawDescriptionHelpFormatter, epilog=LIGHT_HELP)
+    render.add_argument("input", metavar="INPUT", help="scene file (.glb .gltf .obj .ply .stl .off)")
+    output_options(render, (800, 600), 1)
+    render.add_argument("--camera", type=parse_camera, default=None, metavar="EX,EY,EZ,TX,TY,TZ",
+                        help="eye and target positions (default: the file's first camera, else one framing the scene)")
+    render.add_argument("--fov", type=parse_fov, default=None, metavar="DEG",
+                        help="vertical field of view in degrees (default: the file camera's, else 45)")
+    render.add_argument("--light", type=parse_light, action="append", default=[], metavar="SPEC",
+                        help="add a light (repeatable); see the light specs below")
+
+    demo = sub.add_parser("demo", help="render the built-in demo scene (sphere grid and brick torus)")
+    output_options(demo, (960, 540), 4)
+    return parser
+
+
+def _version() -> str:
+    from . import __version__
+
+    return __version__
+
+
+# ---------------------------------------------------------------------- commands
+def _check_output(path: str, transparent: bool) -> None:
+    """Fail before rendering, not after, for outputs that cannot be written."""
+    ext = os.path.splitext(path)[1].lower()
+    directory = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(directory):
+        raise InputError(f"cannot save {path}: folder {directory} does not exist")
+    if os.path.isdir(path):
+        raise InputError(f"cannot save {path}: it is a folder")
+    if ext == ".npy":
+        return
+    from PIL import Image
+
+    fmt = Image.registered_extensions().get(ext)
+    if fmt is None or fmt not in Image.SAVE:
+        raise InputError(f"cannot save {path}: unknown image extension {ext!r} (try .png or .npy)")
+    if transparent and fmt not in ("PNG", "WEBP", "TIFF"):
+        raise InputError(f"{fmt} cannot store transparency; save as .png")
+
+
+def _note(message: str) -> None:
+    print(f"{PROG}: {message}", file=sys.stderr)
+
+
+def _look_at(eye, target, fov):
+    forward = np.subtract(target, eye)
+    # looking (almost) straight up or down: world +Y cannot be the up vector
+    up = (0.0, 1.0, 0.0)
+    if np.linalg.norm(np.cross(forward / np.linalg.norm(forward), up)) < 1e-3:
+        up = (0.0, 0.0, -1.0 if forward[1] < 0 else 1.0)
+    return Camera.look_at(eye, target, up=up, fov_y=fov)
+
+
+def _choose_camera(scene, args) -> Camera:
+    fov = args.fov
+    if args.camera is not None:
+        return _look_at(*args.camera, 45.0 if fov is None else fov)
+    if scene.cameras:
+        cam = scene.cameras[0]
+        return cam if fov is None else Camera(cam.eye, cam.forward, cam.up, fov_y=fov)
+    return Camera.frame(scene, fov_y=45.0 if fov is None else fov)
+
+
+def _shoulder_light(camera: Camera) -> DirectionalLight:
+    """A key light from above and to the right, behind the camera."""
+    forward, up, right = (np.asarray(v) for v in (camera.forward, camera.up, camera.right))
+    return DirectionalLight(direction=tuple(forward - 0.7 * up - 0.4 * right), intensity=DEFAULT_KEY_LUX)
+
+
+def _render_and_save(scene, camera, args, background) -> None:
+    from .render import render
+
+    width, height = args.size
+    frame = render(scene, camera, width=width, height=height, spp=args.spp, threads=args.threads,
+                   shadows=args.shadows, background=background)
+    frame.save(args.output, exposure=args.exposure, tonemap=args.tonemap, transparent=args.transparent)
+
+
+def cmd_render(args) -> int:
+    from .scene import Scene
+
+    _check_output(args.output, args.transparent)
+    scene = Scene.load(args.input)
+    camera = _choose_camera(scene, args)
+    for light in args.light:
+        scene.add_light(light)
+    if not scene.lights:
+        scene.add_light(_shoulder_light(camera))
+        _note(f"note: the scene has no lights; added a {DEFAULT_KEY_LUX:g} lux directional light "
+              "from over the camera's shoulder (use --light to choose your own)")
+    _render_and_save(scene, camera, args, args.background or (0.0, 0.0, 0.0))
+    return 0
+
+
+def cmd_demo(args) -> int:
+    from pbrwarp.meshes import DEMO_BACKGROUND, demo_scene
+
+    _check_output(args.output, args.transparent)
+    scene, camera = demo_scene()
+    _render_and_save(scene, camera, args, args.background or DEMO_BACKGROUND)
+    return 0
+
+
+def main(argv=None) -> int:
+    """Run the command line; returns the exit status (0 on success, 2 on bad input)."""
+    import warp as wp
+
+    # Warp's greeting and kernel-cache messages are noise on a command line; warnings stay.
+    log_level = wp.config.log_level
+    wp.config.log_level = max(log_level, wp.LOG_WARNING)
+    try:
+        return _main(argv)
+    finally:
+        wp.config.log_level = log_level
+
+
+# Options whose values may start with "-" (negative coordinates): argparse would take
+# "--camera -3,0,0,0,0,0" for two options, so such values are glued on as "--camera=-3,...".
+_SIGNED_OPTIONS = ("--camera", "--background", "--exposure")
+
+
+def _glue_negative_values(argv: list[str]) -> list[str]:
+    out, i = [], 0
+    while i < len(argv):
+        token = argv[i]
+        if token in _SIGNED_OPTIONS and i + 1 < len(argv) and re.match(r"-[\d.]", argv[i + 1]):
+            out.append(f"{token}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(token)
+        i += 1
+    return out
+
+
+def _main(argv) -> int:
+    parser = build_parser()
+    argv = _glue_negative_values(list(sys.argv[1:] if argv is None else argv))
+    try:
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exit_:  # --help and --version
+            return exit_.code if isinstance(exit_.code, int) else 0
+        command = {"render": cmd_render, "demo": cmd_demo}[args.command]
+        return command(args)
+    except (UsageError, PbrwarpError, OSError) as err:
+        message = " ".join(str(err).split()) or type(err).__name__
+        print(f"{PROG}: error: {message}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
