@@ -1,0 +1,132 @@
+"""The pbrwarp command line, run in-process through cli.main."""
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+
+import pbrwarp as pw
+from pbrwarp.cli import main
+from pbrwarp.meshes import DEMO_BACKGROUND, demo_scene
+
+
+@pytest.fixture
+def obj_file(tmp_path):
+    path = tmp_path / "ball.obj"
+    trimesh.creation.icosphere(subdivisions=2).export(path)
+    return path
+
+
+@pytest.fixture
+def out_dir(tmp_path):
+    folder = tmp_path / "out"
+    folder.mkdir()
+    return folder
+
+
+def test_demo_writes_png_of_requested_size(out_dir):
+    out = out_dir / "demo.png"
+    assert main(["demo", "-o", str(out), "--size", "64x36", "--spp", "1"]) == 0
+    with Image.open(out) as im:
+        assert im.size == (64, 36)
+        assert im.mode == "RGB"
+        assert np.asarray(im).max() > 100
+
+
+def test_render_obj_adds_default_light_and_says_so(obj_file, out_dir, capsys):
+    out = out_dir / "ball.png"
+    assert main(["render", str(obj_file), "-o", str(out), "--size", "64x48"]) == 0
+    err = capsys.readouterr().err
+    assert "no lights" in err and "3 lux" in err
+    pixels = np.asarray(Image.open(out))
+    assert pixels.shape == (48, 64, 3)
+    assert pixels[24, 32].mean() > 60  # the ball, lit, in the middle of the frame
+    assert pixels[0, 0].max() == 0  # black background
+
+
+def test_render_with_lights_camera_and_npy_output(obj_file, out_dir, capsys):
+    out = out_dir / "ball.npy"
+    code = main(["render", str(obj_file), "-o", str(out), "--size", "32x24", "--spp", "2",
+                 "--camera", "-3,1,2,0,0,0", "--fov", "50", "--light", "point:-3,3,3:40:1,0.5,0.5",
+                 "--light", "spot:0,4,0:0,-1,0:100:10,30", "--no-shadows", "--threads", "1",
+                 "--background", "0.1,0.2,0.3"])
+    assert code == 0
+    assert "no lights" not in capsys.readouterr().err
+    rgba = np.load(out)
+    assert rgba.shape == (24, 32, 4) and rgba.dtype == np.float32
+    assert np.all(np.isfinite(rgba))
+    np.testing.assert_allclose(rgba[0, 0], [0.1, 0.2, 0.3, 0.0], atol=1e-6)
+    centre = rgba[12, 16]
+    assert centre[3] == 1.0 and centre[0] > centre[2]  # the reddish point light dominates
+
+
+def test_transparent_png_has_alpha(obj_file, out_dir):
+    out = out_dir / "ball.png"
+    assert main(["render", str(obj_file), "-o", str(out), "--size", "32x24", "--transparent",
+                 "--tonemap", "reinhard", "--exposure", "-1"]) == 0
+    rgba = np.asarray(Image.open(out))
+    assert rgba.shape == (24, 32, 4)
+    assert rgba[0, 0, 3] == 0 and rgba[12, 16, 3] == 255
+
+
+def test_help_exits_zero(capsys):
+    assert main(["render", "--help"]) == 0
+    assert "point:X,Y,Z:CANDELA" in capsys.readouterr().out
+
+
+BAD_INPUTS = {
+    "missing input": (["render", "{missing}", "-o", "{out}"], "not found"),
+    "size 0x10": (["render", "{obj}", "-o", "{out}", "--size", "0x10"], "WIDTHxHEIGHT|640x480"),
+    "size abc": (["render", "{obj}", "-o", "{out}", "--size", "abc"], "WIDTHxHEIGHT"),
+    "size 10x": (["demo", "-o", "{out}", "--size", "10x"], "WIDTHxHEIGHT"),
+    "fov 0": (["render", "{obj}", "-o", "{out}", "--fov", "0"], "between 0 and 180"),
+    "fov 180": (["render", "{obj}", "-o", "{out}", "--fov", "180"], "between 0 and 180"),
+    "negative light": (["render", "{obj}", "-o", "{out}", "--light", "point:0,0,5:-10"], ">= 0"),
+    "short light position": (["render", "{obj}", "-o", "{out}", "--light", "dir:0,-1:3"], "3 comma-separated"),
+    "unknown light type": (["render", "{obj}", "-o", "{out}", "--light", "laser:0,0,0:1"], "point, dir or spot"),
+    "bad spot cone": (["render", "{obj}", "-o", "{out}", "--light", "spot:0,1,0:0,-1,0:5:40,20"], "INNER <= OUTER"),
+    "unknown tonemap": (["render", "{obj}", "-o", "{out}", "--tonemap", "filmic"], "invalid choice"),
+    "missing folder": (["render", "{obj}", "-o", "{missing_dir_out}"], "does not exist"),
+    "unknown extension": (["demo", "-o", "{out_xyz}"], "unknown image extension"),
+    "spp 0": (["demo", "-o", "{out}", "--spp", "0"], ">= 1"),
+    "eye is target": (["render", "{obj}", "-o", "{out}", "--camera", "1,1,1,1,1,1"], "must differ"),
+    "transparent jpeg": (["render", "{obj}", "-o", "{out_jpg}", "--transparent"], "transparency"),
+    "no command": ([], "required"),
+    "not a scene": (["render", "{text}", "-o", "{out}"], "cannot read|contains no triangles"),
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_INPUTS))
+def test_bad_input_is_one_line_exit_2_and_no_output(name, obj_file, out_dir, tmp_path, capsys):
+    args, expected = BAD_INPUTS[name]
+    (tmp_path / "notes.obj").write_text("this is not a mesh\n")
+    values = {
+        "obj": str(obj_file), "missing": str(tmp_path / "nope.obj"), "out": str(out_dir / "x.png"),
+        "missing_dir_out": str(tmp_path / "no-such-folder" / "x.png"), "out_xyz": str(out_dir / "x.xyz"),
+        "out_jpg": str(out_dir / "x.jpg"), "text": str(tmp_path / "notes.obj"),
+    }
+    code = main([a.format(**values) for a in args])
+    assert code == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1, captured.err
+    assert lines[0].startswith("pbrwarp: error: ")
+    assert "Traceback" not in captured.err and captured.out == ""
+    import re
+
+    assert re.search(expected, lines[0]), lines[0]
+    assert list(out_dir.iterdir()) == []
+    assert not (tmp_path / "no-such-folder").exists()
+
+
+def test_demo_scene_renders_finite_and_lit():
+    scene, camera = demo_scene()
+    assert len(scene.lights) >= 2
+    frame = pw.render(scene, camera, width=96, height=54, spp=1, background=DEMO_BACKGROUND, progress=False)
+    assert np.all(np.isfinite(frame.rgb))
+    assert 0.25 < frame.alpha.mean() < 0.9  # spheres and torus fill much of the frame, not all
+    srgb = frame.to_srgb8()
+    hit = frame.alpha > 0
+    assert srgb[hit].mean() > 40
+    # well exposed: almost nothing clips to white under the default ACES tone map
+    assert np.mean(srgb.min(axis=2) == 255) < 0.01
