@@ -1,5 +1,7 @@
 """The pbrwarp command line, run in-process through cli.main."""
 
+import re
+
 import numpy as np
 import pytest
 import trimesh
@@ -112,8 +114,6 @@ def test_bad_input_is_one_line_exit_2_and_no_output(name, obj_file, out_dir, tmp
     assert len(lines) == 1, captured.err
     assert lines[0].startswith("pbrwarp: error: ")
     assert "Traceback" not in captured.err and captured.out == ""
-    import re
-
     assert re.search(expected, lines[0]), lines[0]
     assert list(out_dir.iterdir()) == []
     assert not (tmp_path / "no-such-folder").exists()
