@@ -149,7 +149,7 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--quick", action="store_true", help="small mesh and sizes, for checking the script")
     args = ap.parse_args(argv)
-    wp.config.quiet = True
+    wp.config.log_level = wp.LOG_WARNING
     threads_all = os.cpu_count() or 1
     sizes = (128,) if args.quick else (512, 1024)
     rows = []

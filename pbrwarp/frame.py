@@ -77,7 +77,7 @@ class Frame:
             from PIL import Image
 
             fmt = Image.registered_extensions().get(ext)
-            if fmt is None:
+            if fmt is None or fmt not in Image.SAVE:
                 raise InputError(f"cannot save {path}: unknown image extension {ext!r} (try .png or .npy)")
             if transparent and fmt not in ("PNG", "WEBP", "TIFF"):
                 raise InputError(f"{fmt} cannot store transparency; save as .png")

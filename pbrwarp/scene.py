@@ -153,6 +153,8 @@ class Scene:
         path = os.fspath(path)
         if not os.path.exists(path):
             raise AssetNotFoundError(f"scene file not found: {path}")
+        if os.path.isdir(path):
+            raise AssetFormatError(f"cannot load {path}: it is a folder, not a scene file")
         ext = os.path.splitext(path)[1].lower()
         if ext not in LOADABLE:
             raise AssetFormatError(f"cannot load {path}: unsupported extension {ext!r} (supported: {', '.join(LOADABLE)})")

@@ -3,7 +3,7 @@ import warnings
 import pytest
 import warp as wp
 
-wp.config.quiet = True
+wp.config.log_level = wp.LOG_WARNING  # no kernel-cache chatter in test output
 warnings.filterwarnings("ignore", message=".*CUDA.*")
 
 

@@ -114,6 +114,8 @@ def test_missing_and_corrupt_files(tmp_path):
     unknown.write_text("hello")
     with pytest.raises(pw.AssetFormatError, match="unsupported extension"):
         pw.Scene.load(unknown)
+    with pytest.raises(pw.AssetFormatError, match="folder"):
+        pw.Scene.load(tmp_path)
 
 
 @pytest.mark.parametrize("image,match", [
@@ -132,6 +134,8 @@ def test_save_is_atomic_and_validates(tmp_path):
         frame.save(tmp_path / "missing" / "x.png")
     with pytest.raises(pw.InputError, match="extension"):
         frame.save(tmp_path / "x.unknownext")
+    with pytest.raises(pw.InputError, match="extension"):
+        frame.save(tmp_path / "x.psd")  # Pillow reads PSD but cannot write it
     with pytest.raises(pw.InputError, match="tonemap"):
         frame.save(tmp_path / "x.png", tonemap="filmic-ish")
     assert os.listdir(tmp_path) == []  # nothing half-written
