@@ -14,6 +14,12 @@ from .errors import InputError
 from pbrwarp.kernels.tonemap import TONEMAPS, tonemap_kernel
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 @dataclass
 class Frame:
     """The result of :func:`pbrwarp.render`.
@@ -90,6 +96,7 @@ class Frame:
         try:
             with os.fdopen(fd, "wb") as f:
                 write(f)
+            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp's 0600 would make the image private
             os.replace(tmp, path)
         except BaseException:
             if os.path.exists(tmp):

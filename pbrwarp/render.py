@@ -1,4 +1,4 @@
-"""The render entry point: upload the scene, pick the kernel for its features, launch tiles on a
+"""The render entry point: upload the scene, pick the kernel for its features, launch bands of rows on a
 thread pool (Warp CPU launches run on one thread and release the GIL)."""
 
 from __future__ import annotations
@@ -20,7 +20,9 @@ from .scene import Scene
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.render import render_kernel
 
-TILE_SIZE = 64
+# Bands of whole rows handed out per thread: enough for load balance and a smooth progress bar,
+# few enough that the ~45 us of Python per launch (which holds the GIL) stays negligible.
+BANDS_PER_THREAD = 16
 
 
 def _stratification_grid(spp: int) -> tuple[int, int]:
@@ -40,10 +42,10 @@ def _camera_data(camera: Camera, width: int, height: int) -> CameraData:
     return data
 
 
-def tiles(width: int, height: int, size: int = TILE_SIZE):
-    """(x0, y0, tile_width, tile_height) covering the image, row by row."""
-    return [(x0, y0, min(size, width - x0), min(size, height - y0))
-            for y0 in range(0, height, size) for x0 in range(0, width, size)]
+def bands(width: int, height: int, count: int):
+    """(x0, y0, tile_width, tile_height) tiles of whole rows covering the image, about ``count`` of them."""
+    rows = max(1, math.ceil(height / count))
+    return [(0, y0, width, min(rows, height - y0)) for y0 in range(0, height, rows)]
 
 
 def _progress_bar(total: int, enabled):
@@ -54,7 +56,7 @@ def _progress_bar(total: int, enabled):
     except ImportError:
         return None
     # delay: the bar appears only for renders that take more than about a second
-    return tqdm(total=total, unit="tile", desc="render", delay=1.0, leave=False)
+    return tqdm(total=total, unit="band", desc="render", delay=1.0, leave=False)
 
 
 def render(
@@ -109,22 +111,20 @@ def render(
                   inputs=[gpu.data, cam, spp, grid_m, grid_n, int(seed) % (2**31), x0, y0, tw, bg,
                           out_rgb, out_alpha, out_depth, out_normal])
 
-    work = tiles(width, height)
+    workers = threads or os.cpu_count() or 1
+    work = bands(width, height, BANDS_PER_THREAD * workers)
     bar = _progress_bar(len(work), progress)
+    # compile or load the kernel once, before many threads would all try at once
+    kernel.module.load(wp.get_device("cpu"))
     try:
-        # the first launch compiles or loads the kernel, which must not happen on many threads at once
-        launch(work[0])
-        if bar is not None:
-            bar.update(1)
-        workers = threads or os.cpu_count() or 1
         if workers == 1 or len(work) == 1:
-            for tile in work[1:]:
+            for tile in work:
                 launch(tile)
                 if bar is not None:
                     bar.update(1)
         else:
             with ThreadPoolExecutor(max_workers=workers) as pool:
-                for _ in pool.map(launch, work[1:]):
+                for _ in pool.map(launch, work):
                     if bar is not None:
                         bar.update(1)
     finally:
