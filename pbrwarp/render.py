@@ -6,7 +6,6 @@ from __future__ import annotations
 import functools
 import math
 import os
-import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -113,22 +112,11 @@ def render(
     out_normal = wp.empty((height, width), dtype=wp.vec3, device="cpu")
     bg = wp.vec3(*background)
 
-    inputs = [gpu.data, cam, spp, grid_m, grid_n, int(seed) % (2**31), 0, 0, width, bg,
-              out_rgb, out_alpha, out_depth, out_normal]
-    per_thread = threading.local()
-
     def launch(band):
         x0, y0, tw, th = band
-        # A recorded launch per thread: re-packing every argument costs ~30 us of GIL-held
-        # Python per launch, a recorded one ~9 us, which is what lets two threads scale.
-        cmd = getattr(per_thread, "cmd", None)
-        if cmd is None:
-            cmd = per_thread.cmd = wp.launch(kernel, dim=1, inputs=inputs, device="cpu", record_cmd=True)
-        cmd.set_param_by_name("x0", x0)
-        cmd.set_param_by_name("y0", y0)
-        cmd.set_param_by_name("tile_width", tw)
-        cmd.set_dim(tw * th)
-        cmd.launch()
+        wp.launch(kernel, dim=tw * th, device="cpu",
+                  inputs=[gpu.data, cam, spp, grid_m, grid_n, int(seed) % (2**31), x0, y0, tw, bg,
+                          out_rgb, out_alpha, out_depth, out_normal])
 
     workers = threads or os.cpu_count() or 1
     work = bands(width, height, BANDS_PER_THREAD * workers)
