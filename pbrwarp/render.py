@@ -1,4 +1,4 @@
-"""The render entry point: upload the scene, pick the kernel for its features, launch bands of rows on a
+"""The render entry point: upload the scene, pick the kernel for its features, launch interleaved rows on a
 thread pool (Warp CPU launches run on one thread and release the GIL)."""
 
 from __future__ import annotations
@@ -21,9 +21,10 @@ from .scene import Scene
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.render import render_kernel
 
-# Bands of whole rows handed out per thread: enough for load balance and a smooth progress bar,
-# few enough that the ~45 us of Python per launch (which holds the GIL) stays negligible.
-BANDS_PER_THREAD = 16
+# Launches per thread. Each launch renders an interleaved set of rows (every k-th row of the
+# image), so all launches cost about the same whatever the image shows: a few per thread balance
+# the load, and few launches keep the ~45 us of GIL-held Python per launch negligible.
+LAUNCHES_PER_THREAD = 4
 
 
 def _stratification_grid(spp: int) -> tuple[int, int]:
@@ -43,10 +44,15 @@ def _camera_data(camera: Camera, width: int, height: int) -> CameraData:
     return data
 
 
-def bands(width: int, height: int, count: int):
-    """(x0, y0, tile_width, tile_height) tiles of whole rows covering the image, about ``count`` of them."""
-    rows = max(1, math.ceil(height / count))
-    return [(0, y0, width, min(rows, height - y0)) for y0 in range(0, height, rows)]
+def row_sets(height: int, count: int, interleaved: bool):
+    """(first row, row stride, number of rows) of ``count`` row sets covering the image: every
+    count-th row when ``interleaved`` (balanced across threads), else contiguous blocks (more
+    coherent rays, best when one thread renders them all)."""
+    count = min(count, height)
+    if interleaved:
+        return [(first, count, len(range(first, height, count))) for first in range(count)]
+    rows = math.ceil(height / count)
+    return [(first, 1, min(rows, height - first)) for first in range(0, height, rows)]
 
 
 @functools.cache
@@ -63,7 +69,7 @@ def _progress_bar(total: int, enabled):
     except ImportError:
         return None
     # delay: the bar appears only for renders that take more than about a second
-    return tqdm(total=total, unit="band", desc="render", delay=1.0, leave=False)
+    return tqdm(total=total, unit="launch", desc="render", delay=1.0, leave=False)
 
 
 def render(
@@ -112,21 +118,21 @@ def render(
     out_normal = wp.empty((height, width), dtype=wp.vec3, device="cpu")
     bg = wp.vec3(*background)
 
-    def launch(band):
-        x0, y0, tw, th = band
-        wp.launch(kernel, dim=tw * th, device="cpu",
-                  inputs=[gpu.data, cam, spp, grid_m, grid_n, int(seed) % (2**31), x0, y0, tw, bg,
+    def launch(rows):
+        first, stride, count = rows
+        wp.launch(kernel, dim=width * count, device="cpu",
+                  inputs=[gpu.data, cam, spp, grid_m, grid_n, int(seed) % (2**31), 0, first, width, stride, bg,
                           out_rgb, out_alpha, out_depth, out_normal])
 
     workers = threads or os.cpu_count() or 1
-    work = bands(width, height, BANDS_PER_THREAD * workers)
+    work = row_sets(height, LAUNCHES_PER_THREAD * workers, interleaved=workers > 1)
     bar = _progress_bar(len(work), progress)
     # compile or load the kernel once, before many threads would all try at once
     kernel.module.load(wp.get_device("cpu"))
     try:
         if workers == 1 or len(work) == 1:
-            for tile in work:
-                launch(tile)
+            for rows in work:
+                launch(rows)
                 if bar is not None:
                     bar.update(1)
         else:
