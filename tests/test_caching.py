@@ -1,0 +1,56 @@
+"""Kernels compile once per feature set: warm renders, and renders after editing the camera,
+lights or material factors, compile nothing (in this process or a new one)."""
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import trimesh
+
+import pbrwarp as pw
+from pbrwarp.kernels.render import render_kernel
+
+
+def scene_with(material):
+    scene = pw.Scene()
+    scene.add_mesh(trimesh.creation.icosphere(subdivisions=2), material)
+    scene.add_light(pw.PointLight(position=(2, 2, 2), intensity=20.0))
+    return scene
+
+
+def test_editing_camera_lights_and_factors_reuses_the_kernel():
+    material = pw.Material(base_color=(0.5, 0.5, 0.5), roughness=0.5)
+    scene = scene_with(material)
+    cam = pw.Camera.look_at(eye=(0, 0, 3), target=(0, 0, 0))
+    first = pw.render(scene, cam, width=24, height=24, progress=False)
+    misses = render_kernel.cache_info().misses
+
+    scene.lights[0].position = (-2.0, 1.0, 2.0)
+    scene.lights[0].color = (1.0, 0.5, 0.25)
+    material.roughness = 0.2
+    material.base_color = (0.9, 0.1, 0.1, 1.0)
+    moved = pw.Camera.look_at(eye=(0.5, 0.2, 3.2), target=(0, 0, 0))
+    second = pw.render(scene, moved, width=24, height=24, progress=False)
+
+    assert render_kernel.cache_info().misses == misses
+    assert not np.allclose(first.rgb, second.rgb)  # the edits took effect
+
+
+def test_a_new_process_loads_kernels_from_the_disk_cache():
+    script = textwrap.dedent("""
+        import warp as wp
+        wp.config.log_level = wp.LOG_INFO
+        import trimesh, pbrwarp as pw
+        s = pw.Scene()
+        s.add_mesh(trimesh.creation.icosphere(subdivisions=1), pw.Material())
+        s.add_light(pw.DirectionalLight(direction=(0, -1, -1), intensity=2.0))
+        f = pw.render(s, pw.Camera.look_at(eye=(0, 0, 3), target=(0, 0, 0)), width=8, height=8, progress=False)
+        f.to_srgb8()
+    """)
+    runs = [subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300) for _ in range(2)]
+    for run in runs:
+        assert run.returncode == 0, run.stderr
+    warm = runs[1].stdout + runs[1].stderr
+    assert "render_tile" in warm, warm
+    assert "(compiled)" not in warm, warm
