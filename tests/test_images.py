@@ -274,3 +274,24 @@ def test_no_light_leaks_through_a_thin_wall():
     frame = render(scene, cam, size=(33, 33))
     assert frame.alpha.min() == 1.0
     assert np.all(frame.rgb == 0.0)
+
+
+def test_material_slots_land_on_their_meshes_through_gltf(tmp_path):
+    """Two meshes with their own glTF materials: each material's emission appears exactly on
+    its own mesh after a round trip through a .glb file."""
+    from trimesh.visual.material import PBRMaterial
+    from trimesh.visual.texture import TextureVisuals
+
+    glb = trimesh.Scene()
+    for x, emission in ((-1.0, (1.0, 0.0, 0.0)), (1.0, (0.0, 0.0, 1.0))):
+        cube = box((1.0, 1.0, 1.0), (x, 0.0, 0.0))
+        cube.visual = TextureVisuals(material=PBRMaterial(baseColorFactor=(0, 0, 0, 255), emissiveFactor=emission,
+                                                          metallicFactor=0.0, roughnessFactor=1.0))
+        glb.add_geometry(cube)
+    path = tmp_path / "two_cubes.glb"
+    glb.export(path)
+    scene = pw.Scene.load(path)
+    frame = render(scene, head_on_camera(distance=6.0), size=(41, 21))
+    left, right = frame.rgb[10, 13], frame.rgb[10, 27]
+    np.testing.assert_allclose(left, [1.0, 0.0, 0.0], atol=1e-6)
+    np.testing.assert_allclose(right, [0.0, 0.0, 1.0], atol=1e-6)
