@@ -230,16 +230,17 @@ def primitive_from_trimesh(mesh, material: Material | None = None, name: str = "
         raise InputError(f"mesh {name!r} has NaN or Inf vertices")
     visual = mesh.visual
     uv = getattr(visual, "uv", None) if visual is not None and visual.kind == "texture" else None
-    if not _has_supplied_normals(mesh) and uv is None:
+    colors = _vertex_colors(mesh)
+    if material is None:
+        material = material_from_trimesh(visual)
+    # Crease splitting duplicates vertices; per-vertex UVs and colours would not follow, so
+    # meshes that carry them keep plain smooth normals.
+    if not _has_supplied_normals(mesh) and uv is None and colors is None:
         mesh = trimesh.graph.smooth_shade(mesh, angle=_CREASE_ANGLE)
-        visual = mesh.visual
     normals = np.asarray(mesh.vertex_normals, dtype=np.float64)
     uvs = None
     if uv is not None and len(uv) == len(mesh.vertices):
         uvs = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]])
-    colors = _vertex_colors(mesh)
-    if material is None:
-        material = material_from_trimesh(visual)
     return Primitive(mesh.vertices, mesh.faces, material, normals, uvs, None, colors, name)
 
 
@@ -282,10 +283,8 @@ def material_from_trimesh(visual) -> Material:
         def factor(value, default):
             return default if value is None else value
 
-        base = factor(mat.baseColorFactor, (255, 255, 255, 255))
-        base = np.asarray(base, dtype=np.float64)
-        if base.max() > 1.0 or np.issubdtype(np.asarray(mat.baseColorFactor or [0]).dtype, np.integer):
-            base = base / 255.0
+        # trimesh keeps baseColorFactor as uint8 RGBA
+        base = np.asarray(factor(mat.baseColorFactor, (255, 255, 255, 255)), dtype=np.float64) / 255.0
         return Material(
             base_color=tuple(base),
             metallic=float(np.clip(factor(mat.metallicFactor, 1.0), 0, 1)),
