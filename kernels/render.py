@@ -3,6 +3,7 @@ rays, accumulated over stratified sub-pixel samples. Built per feature set, so t
 code holds only what a scene needs."""
 
 import functools
+from typing import Any
 
 import warp as wp
 
@@ -70,17 +71,8 @@ def surface_hit(scene: SceneData, face: int, u: float, v: float, ray_dir: wp.vec
 
 
 @wp.func
-def interpolate_vec2(a: wp.array(dtype=wp.vec2), h: SurfaceHit) -> wp.vec2:
-    return a[h.i0] * h.b0 + a[h.i1] * h.b1 + a[h.i2] * h.b2
-
-
-@wp.func
-def interpolate_vec3(a: wp.array(dtype=wp.vec3), h: SurfaceHit) -> wp.vec3:
-    return a[h.i0] * h.b0 + a[h.i1] * h.b1 + a[h.i2] * h.b2
-
-
-@wp.func
-def interpolate_vec4(a: wp.array(dtype=wp.vec4), h: SurfaceHit) -> wp.vec4:
+def interpolate(a: wp.array(dtype=Any), h: SurfaceHit):
+    """A per-vertex attribute at the hit, from its barycentrics."""
     return a[h.i0] * h.b0 + a[h.i1] * h.b1 + a[h.i2] * h.b2
 
 
@@ -108,9 +100,9 @@ def render_kernel(features):
         if h.back_face == 1 and mat.double_sided == 0:
             return True
         if mat.alpha_mask == 1:
-            alpha = mat.base_color[3] * interpolate_vec4(scene.colors, h)[3]
+            alpha = mat.base_color[3] * interpolate(scene.colors, h)[3]
             if wp.static(textured):
-                alpha = alpha * texture_or_one(scene, mat.base_color_texture, interpolate_vec2(scene.uvs, h))[3]
+                alpha = alpha * texture_or_one(scene, mat.base_color_texture, interpolate(scene.uvs, h))[3]
             return alpha < mat.alpha_cutoff
         return False
 
@@ -118,13 +110,13 @@ def render_kernel(features):
     def shade(scene: SceneData, h: SurfaceHit, view: wp.vec3, shading_normal: wp.vec3) -> wp.vec3:
         mat = scene.materials[h.material]
         base = wp.vec3(mat.base_color[0], mat.base_color[1], mat.base_color[2])
-        vertex_color = interpolate_vec4(scene.colors, h)
+        vertex_color = interpolate(scene.colors, h)
         base = wp.cw_mul(base, wp.vec3(vertex_color[0], vertex_color[1], vertex_color[2]))
         metallic = mat.metallic
         roughness = mat.roughness
         emissive = mat.emissive
         if wp.static(textured):
-            uv = interpolate_vec2(scene.uvs, h)
+            uv = interpolate(scene.uvs, h)
             bc = texture_or_one(scene, mat.base_color_texture, uv)
             base = wp.cw_mul(base, wp.vec3(bc[0], bc[1], bc[2]))
             mr = texture_or_one(scene, mat.metallic_roughness_texture, uv)
@@ -159,12 +151,12 @@ def render_kernel(features):
         front_ng = h.ng
         if h.back_face == 1:
             front_ng = -h.ng
-        n = safe_normalize(interpolate_vec3(scene.normals, h), front_ng)
+        n = safe_normalize(interpolate(scene.normals, h), front_ng)
         if wp.static(normal_mapping):
             mat = scene.materials[h.material]
             if mat.normal_texture != NO_TEXTURE:
-                texel = texture_or_one(scene, mat.normal_texture, interpolate_vec2(scene.uvs, h))
-                n = perturb_normal(n, interpolate_vec4(scene.tangents, h), texel, mat.normal_scale)
+                texel = texture_or_one(scene, mat.normal_texture, interpolate(scene.uvs, h))
+                n = perturb_normal(n, interpolate(scene.tangents, h), texel, mat.normal_scale)
         if h.back_face == 1:
             n = -n
         return n
