@@ -172,7 +172,6 @@ def render_kernel(features):
         x0: int,
         y0: int,
         tile_width: int,
-        row_stride: int,
         background: wp.vec3,
         out_rgb: wp.array2d(dtype=wp.vec3),
         out_alpha: wp.array2d(dtype=float),
@@ -181,7 +180,7 @@ def render_kernel(features):
     ):
         tid = wp.tid()
         px = x0 + tid % tile_width
-        py = y0 + (tid / tile_width) * row_stride
+        py = y0 + tid / tile_width
         pixel_seed = seed + py * cam.width + px
         radiance = wp.vec3(0.0)
         normal_sum = wp.vec3(0.0)
