@@ -21,10 +21,9 @@ from .scene import Scene
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.render import render_kernel
 
-# Launches per thread, each a contiguous band of rows. Measured on 2 cores (bench/kernels.py
-# scenes, 512²): 4 bands per thread scale best (1.88-1.94x); more bands add GIL-held launch
-# overhead (~45 us each), fewer leave a thread idle at the end, and interleaving the rows of the
-# threads loses ray coherence.
+# Launches per thread, each a contiguous band of rows. In trials on 2 cores (the bench/kernels.py
+# scenes) 4 per thread scaled best: more bands add GIL-held Python per launch, fewer leave a
+# thread idle at the end, and interleaving the threads' rows loses ray coherence.
 LAUNCHES_PER_THREAD = 4
 
 
