@@ -6,6 +6,7 @@
 """
 
 from .camera import Camera
+from .diagnostics import FrameCheck, check
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError
 from .frame import Frame
 from .lights import DirectionalLight, PointLight, SpotLight
@@ -15,8 +16,8 @@ from .scene import Primitive, Scene
 from .textures import Texture
 
 __all__ = [
-    "AssetFormatError", "AssetNotFoundError", "Camera", "DirectionalLight", "Frame", "InputError",
+    "AssetFormatError", "AssetNotFoundError", "Camera", "DirectionalLight", "Frame", "FrameCheck", "InputError",
     "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "Scene", "SpotLight",
-    "Texture", "render",
+    "Texture", "check", "render",
 ]
 __version__ = "0.1.0"
