@@ -3,7 +3,7 @@ delivers to a surface facing it, in photometric units (lux)."""
 
 import warp as wp
 
-from .robust import RAY_FAR
+from .robust import RAY_FAR, clamp_to_float32_max
 
 wp.set_module_options({"enable_backward": False})
 
@@ -61,7 +61,7 @@ def sample_light(light: LightData, p: wp.vec3) -> LightSample:
     else:
         out.to_light = -light.direction
     out.distance = dist
-    out.irradiance = light.intensity / wp.max(dist_sq, MIN_DISTANCE_SQ)
+    out.irradiance = clamp_to_float32_max(light.intensity / wp.max(dist_sq, MIN_DISTANCE_SQ))
     if light.kind == LIGHT_SPOT:
         out.irradiance = out.irradiance * spot_attenuation(light, out.to_light)
     return out

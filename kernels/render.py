@@ -13,6 +13,7 @@ from .lights import sample_light
 from .normal_mapping import perturb_normal
 from .robust import (
     RAY_FAR,
+    clamp_to_float32_max,
     SHADOW_RAY_SHORTENING,
     triangle_hit_error,
     offset_ray_origin,
@@ -209,7 +210,7 @@ def render_kernel(features):
                 break
         inv_spp = 1.0 / float(spp)
         alpha = float(hits) * inv_spp
-        out_rgb[py, px] = radiance * inv_spp + background * (1.0 - alpha)
+        out_rgb[py, px] = clamp_to_float32_max(radiance * inv_spp + background * (1.0 - alpha))
         out_alpha[py, px] = alpha
         if hits > 0:
             out_depth[py, px] = depth

@@ -20,6 +20,9 @@ SHADOW_RAY_SHORTENING = wp.constant(1.0e-5)
 RAY_FAR = wp.constant(1.0e30)
 # Largest finite radiance handed to tone mapping (fp16 max): Inf and huge values map to white.
 RADIANCE_MAX = wp.constant(65504.0)
+# Largest finite float32. Irradiance and radiance are clamped to it: a 1e30 cd light next to a
+# surface overflows float32, and an Inf irradiance times a zero BRDF channel would be NaN.
+FLOAT32_MAX = wp.constant(3.4028234663852886e38)
 
 
 @wp.func
@@ -67,6 +70,12 @@ def offset_ray_origin(p: wp.vec3, p_error: wp.vec3, n: wp.vec3, w: wp.vec3) -> w
     if wp.dot(w, n) < 0.0:
         offset = -offset
     return p + offset
+
+
+@wp.func
+def clamp_to_float32_max(v: wp.vec3) -> wp.vec3:
+    """+Inf components become FLOAT32_MAX (NaN passes through, for pw.check to catch)."""
+    return wp.vec3(wp.min(v[0], FLOAT32_MAX), wp.min(v[1], FLOAT32_MAX), wp.min(v[2], FLOAT32_MAX))
 
 
 @wp.func

@@ -151,7 +151,7 @@ def _build_texels(prims, key) -> _Texels:
 def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> MaterialData:
     row = MaterialData()
     row.base_color = wp.vec4(*mat.base_color)
-    row.emissive = wp.vec3(*mat.emissive)
+    row.emissive = _float32_vector(mat.emissive, "Material.emissive")
     row.metallic, row.roughness, row.specular = mat.metallic, mat.roughness, mat.specular
     row.normal_scale, row.alpha_cutoff = mat.normal_scale, mat.alpha_cutoff
     row.double_sided = int(mat.double_sided)
@@ -164,10 +164,19 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     return row
 
 
+def _float32_vector(values, what: str):
+    """``values`` as a float32 vec3, rejecting what float32 cannot hold (e.g. 1e39)."""
+    with np.errstate(over="ignore"):
+        v = np.asarray(values, dtype=np.float64).astype(np.float32)
+    if not np.all(np.isfinite(v)):
+        raise InputError(f"{what} {tuple(values)} exceeds the float32 range (|x| < 3.4e38) the kernels compute in")
+    return wp.vec3(*v)
+
+
 def _light_row(light) -> LightData:
     row = LightData()
     row.kind = light.kind
-    row.intensity = wp.vec3(*(np.asarray(light.color) * light.intensity))
+    row.intensity = _float32_vector(np.asarray(light.color) * light.intensity, f"{type(light).__name__} color * intensity")
     row.position = wp.vec3(*getattr(light, "position", (0.0, 0.0, 0.0)))
     row.direction = wp.vec3(*getattr(light, "direction", (0.0, -1.0, 0.0)))
     row.cone_scale, row.cone_offset = 0.0, 1.0
