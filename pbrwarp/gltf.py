@@ -50,6 +50,10 @@ _TYPE_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 _WRAP_MODES = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
 _TRIANGLES, _TRIANGLE_STRIP = 4, 5
 _TRIMESH_MODES = (0, 1, 4, 5)  # primitive modes trimesh turns into geometry (and names)
+_MODES = range(7)  # POINTS .. TRIANGLE_FAN
+# An accessor without a bufferView is zeros (plus sparse edits) and costs no bytes in the file, so
+# its count is the one size a small file can make arbitrarily large: capped, not allocated blindly.
+_MAX_ZERO_FILLED_ELEMENTS = 1 << 26
 _SUPPORTED_EXTENSIONS = frozenset({
     "KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_specular", "KHR_materials_emissive_strength",
 })
@@ -127,6 +131,8 @@ class _Document:
             self.json = json.loads(json_bytes.decode("utf-8-sig"))
         except (UnicodeDecodeError, json.JSONDecodeError) as err:
             raise self.error(f"invalid JSON: {err}") from None
+        except RecursionError:  # json's decoder recurses once per nesting level
+            raise self.error("invalid JSON: nested too deeply") from None
         if not isinstance(self.json, dict):
             raise self.error("the JSON is not an object")
         self._check_header()
@@ -243,6 +249,9 @@ class _Document:
         dtype = np.dtype(_COMPONENT_TYPES[ctype])
         if "bufferView" in acc:
             data = self.view_array(acc["bufferView"], acc.get("byteOffset", 0), dtype, count, width, what)
+        elif count > _MAX_ZERO_FILLED_ELEMENTS:
+            raise self.error(f"{what} has no bufferView and count {count}: more than the "
+                             f"{_MAX_ZERO_FILLED_ELEMENTS} zero-filled elements pbrwarp allocates")
         else:
             data = np.zeros((count, width), dtype)
         if "sparse" in acc:
