@@ -174,6 +174,8 @@ class _Document:
     def element(self, kind: str, index, what: str) -> dict:
         """``json[kind][index]``, an error naming ``what`` if the index is not valid."""
         items = self.json.get(kind, [])
+        if not isinstance(items, list):
+            raise self.error(f"{kind!r} must be an array, got {type(items).__name__}")
         if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(items):
             raise self.error(f"{what} refers to {kind}[{index!r}], but the file has {len(items)} {kind}")
         item = items[index]
@@ -319,7 +321,10 @@ def _read_primitives(doc: _Document) -> dict[tuple[int, int], _PrimitiveData]:
     out = {}
     for mi, mesh in enumerate(doc.json.get("meshes", [])):
         for pi, prim in enumerate(mesh.get("primitives", [])):
-            if prim.get("mode", _TRIANGLES) in (_TRIANGLES, _TRIANGLE_STRIP):
+            mode = prim.get("mode", _TRIANGLES)
+            if isinstance(mode, bool) or not isinstance(mode, int) or mode not in _MODES:
+                raise doc.error(f"mesh {mi} primitive {pi} has invalid mode {mode!r} (glTF modes are 0..6)")
+            if mode in (_TRIANGLES, _TRIANGLE_STRIP):
                 out[mi, pi] = _read_primitive(doc, (mi, pi), prim)
     return out
 
@@ -331,6 +336,10 @@ def _read_primitive(doc: _Document, key, prim) -> _PrimitiveData:
         raise doc.error(f"{where} has no POSITION attribute")
     positions = doc.accessor(attrs["POSITION"], f"POSITION of {where}", (3,)).astype(np.float64)
     n = len(positions)
+    bad = np.flatnonzero(~np.isfinite(positions).all(axis=1))
+    if len(bad):
+        raise doc.error(f"POSITION of {where} has NaN or Inf coordinates ({len(bad)} vertices, "
+                        f"first {bad[:3].tolist()})")
 
     def attribute(name, widths):
         if name not in attrs:
@@ -526,7 +535,7 @@ class _Materials:
             emissive=tuple(float(c) * emissive_strength for c in spec.get("emissiveFactor", (0.0, 0.0, 0.0))),
             normal_scale=spec.get("normalTexture", {}).get("scale", 1.0),
             occlusion_strength=spec.get("occlusionTexture", {}).get("strength", 1.0),
-            double_sided=spec.get("doubleSided", False),
+            double_sided=_boolean(spec.get("doubleSided", False), "doubleSided"),
             alpha_mode=spec.get("alphaMode", "OPAQUE"),
             alpha_cutoff=spec.get("alphaCutoff", 0.5),
             name=spec.get("name", ""),
@@ -560,6 +569,12 @@ class _Materials:
         return self._textures[key]
 
 
+def _boolean(value, what: str) -> bool:
+    if not isinstance(value, bool):
+        raise InputTypeError(f"{what} must be true or false, got {value!r}")
+    return value
+
+
 # ---------------------------------------------------------------------------- nodes, lights, cameras
 def _scene_nodes(doc: _Document):
     """(node index, world matrix) for every node of the default scene, parents first."""
@@ -573,6 +588,8 @@ def _scene_nodes(doc: _Document):
         node = doc.element("nodes", index, f"scene graph (under nodes {list(ancestors)})")
         if index in ancestors:
             raise doc.error(f"node {index} is its own ancestor (a cycle in the node hierarchy)")
+        if "mesh" in node:
+            doc.element("meshes", node["mesh"], f"node {index}")
         world = parent @ _local_matrix(doc, node, index)
         yield index, world
         stack.extend((child, world, ancestors + (index,)) for child in reversed(node.get("children", [])))
@@ -584,12 +601,16 @@ def _local_matrix(doc: _Document, node: dict, index: int) -> np.ndarray:
         m = _numbers(doc, node["matrix"], 16, f"node {index} matrix").reshape(4, 4).T
         return m
     t = _numbers(doc, node.get("translation", (0.0, 0.0, 0.0)), 3, f"node {index} translation")
-    x, y, z, w = _numbers(doc, node.get("rotation", (0.0, 0.0, 0.0, 1.0)), 4, f"node {index} rotation")
+    q = _numbers(doc, node.get("rotation", (0.0, 0.0, 0.0, 1.0)), 4, f"node {index} rotation")
     s = _numbers(doc, node.get("scale", (1.0, 1.0, 1.0)), 3, f"node {index} scale")
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if norm == 0.0:
-        raise doc.error(f"node {index} has a zero rotation quaternion")
-    x, y, z, w = x / norm, y / norm, z / norm, w / norm
+    largest = float(np.max(np.abs(q)))
+    norm = largest * float(np.linalg.norm(q / largest)) if largest > 0.0 else 0.0  # no overflow in squares
+    # glTF rotations are unit quaternions; slightly off ones are normalized, but trimesh (which places
+    # the meshes) turns lengths below ~1e-8 or above ~1e154 into the identity, so those are refused
+    # rather than leaving meshes unrotated while lights and cameras turn.
+    if not 1e-6 <= norm <= 1e6:
+        raise doc.error(f"node {index} rotation {q.tolist()} has length {norm:.3g}; glTF rotations are unit quaternions")
+    x, y, z, w = (float(c) for c in q / norm)
     rotation = np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
