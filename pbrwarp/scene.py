@@ -53,6 +53,12 @@ class Primitive:
     def __post_init__(self):
         what = f"mesh {self.name!r}" if self.name else "mesh"
         self.positions = _float_array(self.positions, (3,), f"{what} vertices")
+        with np.errstate(over="ignore"):
+            overflow = ~np.isfinite(self.positions.astype(np.float32)).all(axis=1)
+        if overflow.any():
+            rows = np.flatnonzero(overflow)[:3].tolist()
+            raise InputError(f"{what} vertices exceed the float32 range (|x| < 3.4e38) the renderer computes in "
+                             f"(first bad rows: {rows})")
         n = len(self.positions)
         try:
             faces = np.asarray(self.faces)
@@ -173,7 +179,10 @@ class Scene:
             loaded = trimesh.load(path, force="scene")
         except Exception as err:  # trimesh raises many types for corrupt files
             raise AssetFormatError(f"cannot read {path}: {type(err).__name__}: {err}") from None
-        scene = cls.from_trimesh(loaded)
+        try:
+            scene = cls.from_trimesh(loaded)
+        except (InputError, InputTypeError) as err:  # NaN normals, overflowing vertices, ...
+            raise AssetFormatError(f"cannot load {path}: {err}") from None
         if not scene.primitives:
             raise AssetFormatError(f"{path} contains no triangles")
         return scene
