@@ -23,24 +23,25 @@ def Fd_Lambert() -> float:
 @wp.func
 def D_GGX(alpha: float, n_dot_h: float, one_minus_n_dot_h_sq: float) -> float:
     """Trowbridge-Reitz/GGX distribution (Walter et al. 2007); 1 - (n.h)^2 is passed in, computed
-    as |n x h|^2, since 1 - (n.h)^2 loses all precision near n.h = 1 in float32 (Filament)."""
+    as |n x h|^2, since 1 - (n.h)^2 loses all precision near n.h = 1 in float32 (Filament).
+    Zero for n.h <= 0 (Walter's chi+): a half vector below the surface, e.g. a view direction
+    under a back-facing shading normal, would otherwise read |n x h| ~ 0 as the lobe's peak."""
+    if n_dot_h <= 0.0:
+        return 0.0
     a2 = wp.max(alpha * alpha, MIN_ALPHA_SQ)
     d = one_minus_n_dot_h_sq + n_dot_h * n_dot_h * a2
     return a2 / (PI * d * d)
 
 
 @wp.func
-def G1_SchlickGGX(n_dot_x: float, k: float) -> float:
-    """Schlick's approximation of Smith's G1 for GGX (Karis 2013, seeds 001/004)."""
-    return n_dot_x / (n_dot_x * (1.0 - k) + k)
-
-
-@wp.func
-def G_SmithSchlickGGX(n_dot_v: float, n_dot_l: float, roughness: float) -> float:
-    """Smith's separable G with Schlick-GGX, k = (roughness + 1)^2 / 8 for punctual lights (Karis 2013)."""
+def V_SmithSchlickGGX(n_dot_v: float, n_dot_l: float, roughness: float) -> float:
+    """Smith's separable G with Schlick-GGX, k = (roughness + 1)^2 / 8 for punctual lights
+    (Karis 2013, seeds 001/004), divided by 4 n.l n.v: the visibility form (Filament's V).
+    With G1(x) = x / (x (1 - k) + k), the n.l and n.v of the denominator cancel exactly, so
+    grazing cosines (down to denormals) give no 0/0."""
     r = roughness + 1.0
     k = r * r / 8.0
-    return G1_SchlickGGX(n_dot_v, k) * G1_SchlickGGX(n_dot_l, k)
+    return 0.25 / ((n_dot_v * (1.0 - k) + k) * (n_dot_l * (1.0 - k) + k))
 
 
 @wp.func
@@ -68,7 +69,8 @@ def specular_f90(metallic: float, specular: float) -> wp.vec3:
 def brdf_cook_torrance(
     n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float, specular: float
 ) -> wp.vec3:
-    """f(l, v) of the seeds' model: (1 - F)(1 - metallic) c/pi + D F G / (4 n.l n.v).
+    """f(l, v) of the seeds' model: (1 - F)(1 - metallic) c/pi + D F G / (4 n.l n.v), with
+    G / (4 n.l n.v) evaluated as V_SmithSchlickGGX.
 
     n.v is clamped to MIN_COSINE; n.l <= 0 gives 0 (the light is behind the surface)."""
     n_dot_l = wp.dot(n, l)
@@ -77,13 +79,12 @@ def brdf_cook_torrance(
     n_dot_v = wp.max(wp.dot(n, v), MIN_COSINE)
     h = safe_normalize(v + l, n)
     n_cross_h = wp.cross(n, h)
-    n_dot_h = wp.clamp(wp.dot(n, h), 0.0, 1.0)
+    n_dot_h = wp.min(wp.dot(n, h), 1.0)
     v_dot_h = wp.clamp(wp.dot(v, h), 0.0, 1.0)
     alpha = roughness * roughness
     f0 = specular_f0(base_color, metallic, specular)
     F = F_Schlick(f0, specular_f90(metallic, specular), v_dot_h)
     D = D_GGX(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
-    G = G_SmithSchlickGGX(n_dot_v, n_dot_l, roughness)
-    spec = F * (D * G / (4.0 * n_dot_l * n_dot_v))
+    spec = F * (D * V_SmithSchlickGGX(n_dot_v, n_dot_l, roughness))
     kd = wp.cw_mul(wp.vec3(1.0) - F, base_color) * ((1.0 - metallic) * Fd_Lambert())
     return kd + spec

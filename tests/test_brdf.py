@@ -23,7 +23,7 @@ def eval_terms(
     h = wp.normalize(v[i] + l[i])
     r = roughness[i]
     out_d[i] = kb.D_GGX(r * r, n_dot_h[i], sin_sq[i])
-    out_g[i] = kb.G_SmithSchlickGGX(wp.dot(n[i], v[i]), wp.dot(n[i], l[i]), r)
+    out_g[i] = kb.V_SmithSchlickGGX(wp.dot(n[i], v[i]), wp.dot(n[i], l[i]), r)
     f0 = kb.specular_f0(base[i], metallic[i], specular[i])
     out_f[i] = kb.F_Schlick(f0, kb.specular_f90(metallic[i], specular[i]), wp.dot(v[i], h))
     out_brdf[i] = kb.brdf_cook_torrance(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
@@ -77,9 +77,11 @@ def test_d_ggx_matches_reference(evaluated):
     assert rel_err(d, want) <= 1e-5
 
 
-def test_g_smith_schlick_ggx_matches_reference(evaluated):
+def test_visibility_smith_schlick_ggx_matches_reference(evaluated):
+    """V = G / (4 n.l n.v), the reference computing G and dividing."""
     x, (_, g, _, _) = evaluated
-    want = ref.g_schlick_ggx(np.sum(x["n"] * x["v"], -1), np.sum(x["n"] * x["l"], -1), x["roughness"])
+    nv, nl = np.sum(x["n"] * x["v"], -1), np.sum(x["n"] * x["l"], -1)
+    want = ref.g_schlick_ggx(nv, nl, x["roughness"]) / (4 * nl * nv)
     assert rel_err(g, want) <= 1e-5
 
 

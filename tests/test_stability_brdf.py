@@ -1,0 +1,147 @@
+"""Hard cases for the BRDF: roughness -> 0, grazing and back-facing cosines, degenerate half
+vectors, fractional metallic, black and white base colours, specular 0. Every value finite and
+non-negative, reciprocal, and the worst float32 error against the float64 reference bounded.
+
+Run with ``-s -k error_table`` to print the error table the README quotes.
+"""
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+import warp as wp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pbrwarp.kernels import brdf as kb
+from pbrwarp.kernels.robust import MIN_COSINE
+
+import reference as ref
+
+# The minimum roughness implied by the seeds' MIN_ROUGHNESS: alpha^2 = roughness^4 >= 1e-7.
+MIN_ROUGHNESS = 1e-7 ** 0.25
+ROUGHNESS_GRID = [0.0, 1e-8, 1e-4, MIN_ROUGHNESS, 0.045, 0.5, 1.0]
+COSINE_GRID = [1.0, 0.5, 1e-3, 1e-6, 0.0, -1e-3]
+
+
+@wp.kernel(enable_backward=False)
+def eval_brdf(n: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), l: wp.array(dtype=wp.vec3),
+              base: wp.array(dtype=wp.vec3), metallic: wp.array(dtype=float), roughness: wp.array(dtype=float),
+              specular: wp.array(dtype=float), out: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    out[i] = kb.brdf_cook_torrance(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
+
+
+def brdf(n, v, l, base, metallic, roughness, specular):
+    """Evaluate the kernel's BRDF on numpy batches (one launch)."""
+    count = len(v)
+    vec = lambda a: wp.array(np.broadcast_to(np.asarray(a, np.float32), (count, 3)).copy(), dtype=wp.vec3)
+    sca = lambda a: wp.array(np.broadcast_to(np.asarray(a, np.float32), (count,)).copy(), dtype=float)
+    out = wp.zeros(count, dtype=wp.vec3)
+    wp.launch(eval_brdf, dim=count, inputs=[vec(n), vec(v), vec(l), vec(base), sca(metallic), sca(roughness), sca(specular), out])
+    return out.numpy().astype(np.float64)
+
+
+def direction(cos_theta, phi):
+    s = math.sqrt(max(0.0, 1.0 - cos_theta**2))
+    return (s * math.cos(phi), s * math.sin(phi), cos_theta)
+
+
+def adversarial_grid():
+    rows = []
+    for r, cv, cl, phi, m, b, s in itertools.product(
+            ROUGHNESS_GRID, COSINE_GRID, COSINE_GRID, (0.0, math.pi / 2, math.pi),
+            (0.0, 0.37, 1.0), (0.0, 1.0), (0.0, 1.0)):
+        rows.append((direction(cv, 0.0), direction(cl, phi), r, m, b, s))
+    v, l, r, m, b, s = (np.array(c, dtype=np.float64) for c in zip(*rows))
+    return v, l, r, m, b, s
+
+
+def test_adversarial_grid_is_finite_non_negative_and_bounded():
+    v, l, r, m, b, s = adversarial_grid()
+    f = brdf((0, 0, 1), v, l, np.repeat(b[:, None], 3, 1), m, r, s)
+    assert np.all(np.isfinite(f)) and np.all(f >= 0.0)
+    # the largest value a punctual light can meet: the clamped GGX peak over the clamped n.v
+    peak = 1.0 / (math.pi * 1e-7) * 8.0 * 8.0 / (4.0 * MIN_COSINE)
+    assert f.max() <= peak
+    # light below the surface contributes nothing
+    assert np.all(f[l[:, 2] <= 0.0] == 0.0)
+
+
+@pytest.mark.parametrize("roughness", [0.0, 1e-8, 1e-4])
+def test_roughness_zero_mirror_peak_is_finite(roughness):
+    """n.h = 1 exactly at roughness 0: D would be 0/0 or Inf without the alpha^2 floor."""
+    v = np.array([direction(c, 0.0) for c in (1.0, 0.8, 0.3)])
+    l = v * np.array([-1, -1, 1])  # the mirror direction: h = n exactly
+    f = brdf((0, 0, 1), v, l, (1, 1, 1), 1.0, roughness, 1.0)
+    assert np.all(np.isfinite(f)) and np.all(f > 0)
+    # at the peak D = 1 / (pi alpha^2) with alpha^2 clamped to 1e-7
+    d_peak = 1.0 / (math.pi * 1e-7)
+    assert np.all(f[:, 0] <= d_peak * 8.0 / (4.0 * v[:, 2] ** 2) * 1.001)
+
+
+@pytest.mark.parametrize("eps", [0.0, 1e-30, 1e-12, 1e-6])
+def test_opposite_view_and_light_half_vector(eps):
+    """v = -l (h undefined) and v ~ -l, both just above the tangent plane."""
+    v = np.array([[1.0, 0.0, eps]])
+    l = np.array([[-1.0, 0.0, eps]])
+    f = brdf((0, 0, 1), v / np.linalg.norm(v), l / np.linalg.norm(l), (1, 1, 1), 0.5, 0.3, 1.0)
+    assert np.all(np.isfinite(f)) and np.all(f >= 0)
+
+
+unit = st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1)).filter(lambda x: 1e-3 < sum(c * c for c in x) <= 1)
+batch = st.lists(st.tuples(unit, unit, unit, st.floats(0, 1), st.floats(0, 1), st.floats(0, 1), st.floats(0, 1)),
+                 min_size=1, max_size=64)
+
+
+@settings(max_examples=40, deadline=None)
+@given(batch)
+def test_random_inputs_are_finite_and_non_negative(rows):
+    n, v, l, b, m, r, s = (np.array(c, dtype=np.float64) for c in zip(*rows))
+    n, v, l = (x / np.linalg.norm(x, axis=1, keepdims=True) for x in (n, v, l))
+    f = brdf(n, v, l, np.repeat(b[:, None], 3, 1), m, r, s)
+    assert np.all(np.isfinite(f)) and np.all(f >= 0.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(batch)
+def test_reciprocity(rows):
+    """f(l, v) = f(v, l) wherever both cosines exceed the n.v clamp."""
+    n, v, l, b, m, r, s = (np.array(c, dtype=np.float64) for c in zip(*rows))
+    n, v, l = (x / np.linalg.norm(x, axis=1, keepdims=True) for x in (n, v, l))
+    keep = (np.sum(n * v, 1) > 1e-2) & (np.sum(n * l, 1) > 1e-2) & (r > 0.1)
+    if not keep.any():
+        return
+    n, v, l, b, m, r, s = (x[keep] for x in (n, v, l, b, m, r, s))
+    base = np.repeat(b[:, None], 3, 1)
+    forward = brdf(n, v, l, base, m, r, s)
+    backward = brdf(n, l, v, base, m, r, s)
+    np.testing.assert_allclose(forward, backward, rtol=2e-5, atol=1e-30)
+
+
+def error_table():
+    """Worst float32 relative error of each term over the hard grid, where the reference is
+    defined without the kernel's clamps (n.v, n.l >= 1e-3 and roughness >= MIN_ROUGHNESS) and
+    inputs are exactly representable in float32."""
+    v, l, r, m, b, s = adversarial_grid()
+    keep = (v[:, 2] >= 1e-3) & (l[:, 2] >= 1e-3) & (r >= MIN_ROUGHNESS)
+    v, l, r, m, b, s = (x[keep].astype(np.float32).astype(np.float64) for x in (v, l, r, m, b, s))
+    base = np.repeat(b[:, None], 3, 1)
+    got = brdf((0, 0, 1), v, l, base, m, r, s)
+    want = ref.brdf(np.array([0.0, 0.0, 1.0]), v, l, base, m, r, s)
+    nonzero = want > 1e-30
+    rel = np.abs(got - want)[nonzero] / want[nonzero]
+    worst = int(np.argmax(np.max(np.where(nonzero, np.abs(got - want) / np.where(nonzero, want, 1), 0), 1)))
+    return {"samples": int(len(v)), "max_rel": float(rel.max()), "median_rel": float(np.median(rel)),
+            "worst_at": dict(n_dot_v=float(v[worst, 2]), n_dot_l=float(l[worst, 2]), roughness=float(r[worst]))}
+
+
+def test_error_table_on_the_hard_grid():
+    table = error_table()
+    print(f"\nBRDF float32 vs float64 on the hard grid: {table}")
+    # The hard grid holds near-mirror roughness (alpha ~ 3e-4): there the float32 rounding of h
+    # (~6e-8 rad) moves D by up to ~2e-7/alpha relatively, and the grazing n.l = 1e-3 rows lose a
+    # few more digits in 1 - n.h^2. 2e-3 bounds both; well-conditioned inputs stay under 1e-5
+    # (test_brdf.py).
+    assert table["max_rel"] <= 2e-3
