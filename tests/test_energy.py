@@ -1,0 +1,98 @@
+"""The weak white furnace test (Heitz 2014): a white surface's directional albedo
+a(v) = integral of f(l, v) n.l over the hemisphere never exceeds 1.
+
+The integral is estimated in float64 by Monte Carlo with a fixed seed, sampling l from an equal
+mixture of a cosine-weighted distribution and GGX half-vector sampling (Walter et al. 2007),
+weighted by the mixture pdf; the BRDF values come from the kernel.
+"""
+
+import math
+
+import numpy as np
+import pytest
+import warp as wp
+
+from pbrwarp.kernels import brdf as kb
+
+SAMPLES = 60_000
+ROUGHNESS = (0.05, 0.1, 0.25, 0.5, 0.75, 1.0)
+COS_VIEW = (1.0, 0.7, 0.3, 0.1, 0.02)
+
+
+@wp.kernel(enable_backward=False)
+def eval_white(v: wp.vec3, l: wp.array(dtype=wp.vec3), metallic: float, roughness: float, out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = kb.brdf_cook_torrance(wp.vec3(0.0, 0.0, 1.0), v, l[i], wp.vec3(1.0), metallic, roughness, 1.0)[0]
+
+
+def directional_albedo(cos_view, metallic, roughness, seed=7):
+    """(estimate, standard error) of a(v) for a white surface."""
+    rng = np.random.default_rng(seed)
+    v = np.array([math.sqrt(1 - cos_view**2), 0.0, cos_view])
+    a2 = max(roughness**4, 1e-7)
+    u1, u2, pick = rng.random(SAMPLES), rng.random(SAMPLES), rng.random(SAMPLES) < 0.5
+    phi = 2 * np.pi * u2
+    r = np.sqrt(u1)
+    l_cos = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u1)], -1)
+    cos_h = np.sqrt((1 - u1) / (1 + (a2 - 1) * u1))
+    sin_h = np.sqrt(1 - cos_h**2)
+    h = np.stack([sin_h * np.cos(phi), sin_h * np.sin(phi), cos_h], -1)
+    l_ggx = 2 * (h @ v)[:, None] * h - v
+    l = np.where(pick[:, None], l_cos, l_ggx)
+    half = (v + l) / np.linalg.norm(v + l, axis=-1, keepdims=True)
+    n_dot_h, v_dot_h, n_dot_l = half[:, 2], np.maximum(half @ v, 1e-300), l[:, 2]
+    d = a2 / (np.pi * (n_dot_h**2 * (a2 - 1) + 1) ** 2)
+    pdf = 0.5 * np.maximum(n_dot_l, 0) / np.pi + 0.5 * d * n_dot_h / (4 * v_dot_h)
+    out = wp.empty(SAMPLES, dtype=float)
+    wp.launch(eval_white, dim=SAMPLES, inputs=[wp.vec3(*v), wp.array(l.astype(np.float32), dtype=wp.vec3), metallic, roughness, out])
+    w = np.where(n_dot_l > 0, out.numpy().astype(np.float64) * n_dot_l / np.maximum(pdf, 1e-300), 0.0)
+    return w.mean(), w.std() / math.sqrt(SAMPLES)
+
+
+def furnace_excess(metallics):
+    """Largest a(v) - (1 + 4 standard errors + 1e-3) over the grid, with where it happens."""
+    worst = (-np.inf, None)
+    for m in metallics:
+        for r in ROUGHNESS:
+            for c in COS_VIEW:
+                est, err = directional_albedo(c, m, r)
+                excess = est - (1.0 + 4 * err + 1e-3)
+                if excess > worst[0]:
+                    worst = (excess, dict(metallic=m, roughness=r, cos_view=c, albedo=est))
+    return worst
+
+
+@wp.kernel(enable_backward=False)
+def eval_lambert(v: wp.vec3, l: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    out[i] = kb.brdf_cook_torrance(wp.vec3(0.0, 0.0, 1.0), v, l[i], wp.vec3(1.0), 0.0, 0.5, 0.0)
+
+
+def test_lambert_alone_integrates_to_one():
+    """The estimator itself: with specular 0 a white Lambert surface has albedo exactly 1."""
+    albedos = []
+    for c in (1.0, 0.3, 0.02):
+        v = np.array([math.sqrt(1 - c**2), 0.0, c])
+        u1, u2 = np.random.default_rng(3).random((2, SAMPLES))
+        r, phi = np.sqrt(u1), 2 * np.pi * u2
+        l = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u1)], -1)
+        out = wp.empty(SAMPLES, dtype=wp.vec3)
+        wp.launch(eval_lambert, dim=SAMPLES, inputs=[wp.vec3(*v), wp.array(l.astype(np.float32), dtype=wp.vec3), out])
+        albedos.append(np.mean(out.numpy()[:, 0] * np.pi))  # f cos / (cos/pi)
+    np.testing.assert_allclose(albedos, 1.0, rtol=1e-6)
+
+
+def test_white_metal_furnace():
+    """Metals are the specular lobe alone: single scattering loses energy, never creates it."""
+    excess, where = furnace_excess([1.0])
+    assert excess <= 0.0, where
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "The seeds' model weights Lambert by (1 - F(v.h)) per light direction; for smooth white "
+    "dielectrics seen at 70-85 degrees that adds diffuse the specular lobe already took (albedo "
+    "up to ~1.06). Coupling by albedo (1 - E(v)) belongs to the energy rung of the BRDF ladder; "
+    "symmetric (1 - F(n.l))(1 - F(n.v)) conserves energy but darkens grazing diffuse ~10x."))
+def test_white_dielectric_and_mixed_furnace():
+    excess, where = furnace_excess([0.0, 0.5])
+    assert excess <= 0.0, where
