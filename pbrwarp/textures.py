@@ -22,6 +22,37 @@ def srgb_to_linear(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
+# Pillow modes whose raw channels are not colour (+ alpha) values, and what Pillow converts them to:
+# palette indices, padding bytes, premultiplied alpha, other colour spaces.
+_PILLOW_CONVERSIONS = {"P": "RGBA", "PA": "RGBA", "RGBX": "RGB", "RGBa": "RGBA", "La": "LA", "1": "L",
+                       "CMYK": "RGB", "YCbCr": "RGB", "LAB": "RGB", "HSV": "RGB"}
+_COLOUR_KEY_MODES = ("L", "RGB", "I", "I;16", "I;16B", "I;16L")
+
+
+def _pillow_array(image) -> np.ndarray:
+    """A Pillow image as an integer or float array of colour (+ alpha) channels. A PNG tRNS colour
+    key (``image.info["transparency"]`` on greyscale and RGB images) becomes an alpha channel, as
+    PNG decoders give it; palette transparency comes through Pillow's RGBA conversion."""
+    mode = image.mode
+    if mode in _PILLOW_CONVERSIONS:
+        return np.asarray(image.convert(_PILLOW_CONVERSIONS[mode]))
+    if mode in ("I;16", "I;16B", "I;16L"):
+        arr = np.asarray(image).astype(np.uint16)
+    elif mode == "I":  # 32-bit integers; from PNGs, 16-bit greyscale
+        arr = np.clip(np.asarray(image, dtype=np.int64), 0, 65535).astype(np.uint16)
+    else:
+        arr = np.asarray(image)
+    key = image.info.get("transparency") if mode in _COLOUR_KEY_MODES else None
+    if key is not None:
+        key = np.asarray(key)
+        channels = 1 if arr.ndim == 2 else arr.shape[2]
+        if key.dtype.kind in "iu" and key.size == channels:
+            matches = arr == key if arr.ndim == 2 else np.all(arr == key.reshape(1, 1, -1), axis=2)
+            alpha = np.where(matches, 0, np.iinfo(arr.dtype).max).astype(arr.dtype)
+            arr = np.dstack([arr, alpha])
+    return arr
+
+
 def image_to_float_rgba(image, what: str = "texture") -> np.ndarray:
     """Any Pillow image or numpy array as a float32 (H, W, 4) array of values in [0, 1].
 
@@ -33,16 +64,7 @@ def image_to_float_rgba(image, what: str = "texture") -> np.ndarray:
     except ImportError:  # pragma: no cover - Pillow is a core dependency
         Image = None
     if Image is not None and isinstance(image, Image.Image):
-        if image.mode == "P":
-            image = image.convert("RGBA")
-        elif image.mode in ("I;16", "I;16B", "I;16L"):
-            image = np.asarray(image, dtype=np.uint16)
-        elif image.mode == "I":
-            image = np.clip(np.asarray(image, dtype=np.int64), 0, 65535).astype(np.uint16)
-        elif image.mode in ("CMYK", "YCbCr", "LAB", "HSV", "1", "F"):
-            image = image.convert("RGB") if image.mode != "F" else np.asarray(image)
-        if not isinstance(image, np.ndarray):
-            image = np.asarray(image)
+        image = _pillow_array(image)
     if not isinstance(image, np.ndarray):
         raise InputTypeError(f"{what} must be a numpy array or a Pillow image, got {type(image).__name__}")
     arr = image
