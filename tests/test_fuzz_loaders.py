@@ -787,6 +787,7 @@ def test_slightly_non_unit_rotation_is_normalized(tmp_path):
     np.testing.assert_allclose(scenes[0].primitives[0].positions, scenes[1].primitives[0].positions, atol=1e-12)
 
 
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")  # trimesh's, on the overflowing and NaN values
 @pytest.mark.parametrize("text, message", [
     ("v 1e39 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "exceed the float32 range"),
     ("v 1e300 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "exceed the float32 range"),
