@@ -17,6 +17,7 @@ import warp as wp
 from .errors import InputError
 from .lights import DIRECTIONAL, SPOT
 from .materials import Material
+from .scene import unit_rows
 from .textures import WRAP_MODES
 from pbrwarp.kernels.lights import LightData
 from pbrwarp.kernels.scene_data import MaterialData, SceneData
@@ -92,9 +93,11 @@ def _build_geometry(prims, key) -> _Geometry:
         for p in prims:
             value = getattr(p, attr) if attr != "tangents" else _primitive_tangents(p)
             parts.append(np.full((len(p.positions), width), default, np.float64) if value is None else value)
-        return np.concatenate(parts).astype(np.float32)
+        return np.concatenate(parts).astype(np.float64 if attr == "normals" else np.float32)
 
-    normals = column("normals", 3, 0.0)
+    # unit length in float64 here: float32 squares of 1e-20 or 1e20 long normals would
+    # under- or overflow in the kernels; zero rows (flat shading) stay zero
+    normals = unit_rows(column("normals", 3, 0.0)).astype(np.float32)
     uvs = column("uvs", 2, 0.0)
     tangents = column("tangents", 4, 0.0)
     colors = column("colors", 4, 1.0)

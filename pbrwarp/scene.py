@@ -104,16 +104,16 @@ def transform_primitive(prim: Primitive, matrix) -> Primitive:
     if det == 0.0:
         raise InputError("transform is singular (zero scale): the mesh would collapse to a plane")
     positions = prim.positions @ linear.T + m[:3, 3]
-    normals = None if prim.normals is None else _renormalize(prim.normals @ np.linalg.inv(linear))
+    normals = None if prim.normals is None else unit_rows(prim.normals @ np.linalg.inv(linear))
     tangents = None
     if prim.tangents is not None:
-        xyz = _renormalize(prim.tangents[:, :3] @ linear.T)
+        xyz = unit_rows(prim.tangents[:, :3] @ linear.T)
         tangents = np.concatenate([xyz, prim.tangents[:, 3:] * np.sign(det)], axis=1)
     faces = prim.faces[:, ::-1] if det < 0 else prim.faces
     return Primitive(positions, faces, prim.material, normals, prim.uvs, tangents, prim.colors, prim.name)
 
 
-def _renormalize(v):
+def unit_rows(v):
     """Unit rows; zero rows stay zero (they mark missing normals)."""
     length = np.linalg.norm(v, axis=1, keepdims=True)
     return np.divide(v, length, out=np.zeros_like(v), where=length > 0)
