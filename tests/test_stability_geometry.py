@@ -243,3 +243,49 @@ def test_spawned_rays_never_hit_their_own_triangle(size, shift):
     # a quarter of the bound still holds; a 64th does not, which shows the test can fail
     assert self_hits(size, shift, scale=0.25, trials=4) == 0
     assert self_hits(size, shift, scale=1.0 / 64.0, trials=4) > 0
+
+
+@pytest.mark.parametrize("roughness", [0.0, 1e-8, 1e-4, 1e-7 ** 0.25, 1.0])
+def test_material_extremes_render_finite(roughness):
+    """Roughness down to 0 with every metallic (fractional too), black and white base colours,
+    f0 = 1 (white metal) and specular 0, on a sphere lit by all three light types."""
+    scene = pw.Scene()
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    materials = [pw.Material(base_color=(b, b, b), metallic=m, roughness=roughness, specular=s)
+                 for b in (0.0, 1.0) for m in (0.0, 0.37, 1.0) for s in (0.0, 1.0)]
+    for i, mat in enumerate(materials):
+        scene.add_mesh(sphere, mat, transform=_translation((2.5 * (i % 4), 2.5 * (i // 4), 0.0)))
+    scene.add_light(pw.DirectionalLight(direction=(-0.3, -0.4, -1.0), intensity=3.0))
+    scene.add_light(pw.PointLight(position=(4.0, 4.0, 3.0), intensity=50.0))
+    scene.add_light(pw.SpotLight(position=(3.0, 2.0, 6.0), direction=(0, 0, -1), intensity=80.0, outer_cone=0.6))
+    render(scene, pw.Camera.frame(scene, direction=(0, 0, 1)), size=(160, 96), spp=4)
+
+
+def test_double_sided_normal_mapped_plane_seen_from_behind():
+    """The back of a double-sided surface flips the whole normal-mapped frame: lit from behind it
+    shades exactly like the front lit from the front, mirrored."""
+    texture = np.zeros((2, 2, 3), np.float32)
+    texture[...] = (np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93]) + 1) / 2
+    material = pw.Material(normal_texture=texture, roughness=0.4, double_sided=True)
+    front, back = pw.Scene(), pw.Scene()
+    for scene, side in ((front, 1.0), (back, -1.0)):
+        scene.add_mesh(quad(size=3.0, material=material, tangents=np.tile([1.0, 0, 0, 1], (4, 1))))
+        scene.add_light(pw.DirectionalLight(direction=(0.2, 0.1, -side), intensity=3.0))
+    a = render(front, pw.Camera.look_at(eye=(0, 0, 3), target=(0, 0, 0)))
+    b = render(back, pw.Camera.look_at(eye=(0, 0, -3), target=(0, 0, 0)))
+    assert np.all(b.rgb[b.alpha > 0] > 0)
+    # seen from behind, the image is mirrored in x and every normal is the front one negated
+    np.testing.assert_allclose(b.normal[:, ::-1], -a.normal, atol=1e-5)
+
+
+def test_degenerate_uvs_with_a_normal_map():
+    """All UVs equal (zero-length tangent frame) or collinear (parallel frame): generated tangents
+    fall back to some perpendicular, and the image stays finite."""
+    texture = np.random.default_rng(4).uniform(0, 1, (8, 8, 3)).astype(np.float32)
+    for uvs in (np.full((4, 2), 0.5), np.array([[0, 0], [0.5, 0.5], [1, 1], [0.25, 0.25]], float)):
+        prim = quad(material=pw.Material(normal_texture=texture))
+        prim.uvs = uvs
+        scene = pw.Scene()
+        scene.add_mesh(prim)
+        scene.add_light(pw.PointLight(position=(0.3, 0.2, 1.0), intensity=3.0))
+        render(scene, head_on_camera())
