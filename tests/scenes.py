@@ -31,3 +31,11 @@ def box(extents, center):
 
 def rotation_about_y(angle):
     return trimesh.transformations.rotation_matrix(angle, (0, 1, 0))
+
+
+def render_checked(scene, cam, size=(33, 33), **kw):
+    """Render and assert the frame has no NaN, Inf or negative pixel (pw.check)."""
+    frame = pw.render(scene, cam, width=size[0], height=size[1], progress=False, **kw)
+    report = pw.check(frame)
+    assert report.ok, report
+    return frame

@@ -8,12 +8,7 @@ import trimesh
 
 import pbrwarp as pw
 
-from scenes import box, head_on_camera, lambert_white, quad, rotation_about_y
-
-
-def render(scene, cam, size=(33, 33), **kw):
-    kw.setdefault("progress", False)
-    return pw.render(scene, cam, width=size[0], height=size[1], **kw)
+from scenes import box, head_on_camera, lambert_white, quad, rotation_about_y, render_checked as render
 
 
 def hit_points(frame, cam):

@@ -11,14 +11,7 @@ import pbrwarp as pw
 import warp as wp
 from pbrwarp.kernels.robust import offset_ray_origin, triangle_hit_error
 
-from scenes import box, head_on_camera, lambert_white, quad
-
-
-def render(scene, cam, size=(33, 33), **kw):
-    frame = pw.render(scene, cam, width=size[0], height=size[1], progress=False, **kw)
-    report = pw.check(frame)
-    assert report.ok, report
-    return frame
+from scenes import box, head_on_camera, lambert_white, quad, render_checked as render
 
 
 def random_cameras(count, seed, distance, target=(0.0, 0.0, 0.0)):

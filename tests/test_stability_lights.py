@@ -9,14 +9,7 @@ import trimesh
 
 import pbrwarp as pw
 
-from scenes import head_on_camera, lambert_white, quad
-
-
-def render(scene, cam, size=(33, 33), **kw):
-    frame = pw.render(scene, cam, width=size[0], height=size[1], progress=False, **kw)
-    report = pw.check(frame)
-    assert report.ok, report
-    return frame
+from scenes import head_on_camera, lambert_white, quad, render_checked as render
 
 
 @pytest.mark.parametrize("height", [1e-3, 1e-12, 0.0])
