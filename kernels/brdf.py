@@ -1,6 +1,8 @@
 """The BRDF of the seeds: Lambert diffuse plus Cook-Torrance specular (GGX, Smith/Schlick-GGX,
 Schlick Fresnel), metallic-roughness parameterized as in glTF. One small function per term."""
 
+import functools
+
 import warp as wp
 
 from .robust import MIN_COSINE, safe_normalize
@@ -65,26 +67,43 @@ def specular_f90(metallic: float, specular: float) -> wp.vec3:
     return wp.vec3(specular + (1.0 - specular) * metallic)
 
 
-@wp.func
-def brdf_cook_torrance(
-    n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float, specular: float
-) -> wp.vec3:
-    """f(l, v) of the seeds' model: (1 - F)(1 - metallic) c/pi + D F G / (4 n.l n.v), with
-    G / (4 n.l n.v) evaluated as V_SmithSchlickGGX.
+@functools.cache
+def brdf_for(diffuse_lobe: bool, specular_lobe: bool):
+    """brdf(n, v, l, base_color, metallic, roughness, specular) -> f(l, v), the seeds' model:
+    (1 - F)(1 - metallic) c/pi + D F G / (4 n.l n.v), with G / (4 n.l n.v) evaluated as
+    V_SmithSchlickGGX; n.v is clamped to MIN_COSINE, n.l <= 0 gives 0.
 
-    n.v is clamped to MIN_COSINE; n.l <= 0 gives 0 (the light is behind the surface)."""
-    n_dot_l = wp.dot(n, l)
-    if n_dot_l <= 0.0:
-        return wp.vec3(0.0)
-    n_dot_v = wp.max(wp.dot(n, v), MIN_COSINE)
-    h = safe_normalize(v + l, n)
-    n_cross_h = wp.cross(n, h)
-    n_dot_h = wp.min(wp.dot(n, h), 1.0)
-    v_dot_h = wp.clamp(wp.dot(v, h), 0.0, 1.0)
-    alpha = roughness * roughness
-    f0 = specular_f0(base_color, metallic, specular)
-    F = F_Schlick(f0, specular_f90(metallic, specular), v_dot_h)
-    D = D_GGX(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
-    spec = F * (D * V_SmithSchlickGGX(n_dot_v, n_dot_l, roughness))
-    kd = wp.cw_mul(wp.vec3(1.0) - F, base_color) * ((1.0 - metallic) * Fd_Lambert())
-    return kd + spec
+    Compiled with only the lobes a scene needs: without ``specular_lobe`` (every material has
+    specular = 0 and metallic = 0, so F = 0) the Fresnel, D and V code is not generated; without
+    ``diffuse_lobe`` (every material fully metallic) the Lambert code is not. Either gives bit for bit
+    what the full BRDF gives on such materials."""
+
+    @wp.func
+    def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
+             specular: float) -> wp.vec3:
+        n_dot_l = wp.dot(n, l)
+        if n_dot_l <= 0.0:
+            return wp.vec3(0.0)
+        out = wp.vec3(0.0)
+        if wp.static(specular_lobe):
+            n_dot_v = wp.max(wp.dot(n, v), MIN_COSINE)
+            h = safe_normalize(v + l, n)
+            n_cross_h = wp.cross(n, h)
+            n_dot_h = wp.min(wp.dot(n, h), 1.0)
+            v_dot_h = wp.clamp(wp.dot(v, h), 0.0, 1.0)
+            alpha = roughness * roughness
+            f0 = specular_f0(base_color, metallic, specular)
+            F = F_Schlick(f0, specular_f90(metallic, specular), v_dot_h)
+            D = D_GGX(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
+            out = F * (D * V_SmithSchlickGGX(n_dot_v, n_dot_l, roughness))
+            if wp.static(diffuse_lobe):
+                out = wp.cw_mul(wp.vec3(1.0) - F, base_color) * ((1.0 - metallic) * Fd_Lambert()) + out
+        elif wp.static(diffuse_lobe):
+            out = base_color * ((1.0 - metallic) * Fd_Lambert())
+        return out
+
+    return brdf
+
+
+# The full model, every lobe compiled in.
+brdf_cook_torrance = brdf_for(True, True)

@@ -1,6 +1,8 @@
 """Punctual lights (KHR_lights_punctual): the direction to the light and the irradiance it
 delivers to a surface facing it, in photometric units (lux)."""
 
+import functools
+
 import warp as wp
 
 from .robust import RAY_FAR, clamp_to_float32_max
@@ -45,14 +47,18 @@ def spot_attenuation(light: LightData, to_light: wp.vec3) -> float:
 
 
 @wp.func
-def sample_light(light: LightData, p: wp.vec3) -> LightSample:
-    """Direction, irradiance (inverse-square law for point and spot lights) and distance."""
+def sample_directional(light: LightData) -> LightSample:
     out = LightSample()
-    if light.kind == LIGHT_DIRECTIONAL:
-        out.to_light = -light.direction
-        out.irradiance = light.intensity
-        out.distance = RAY_FAR
-        return out
+    out.to_light = -light.direction
+    out.irradiance = light.intensity
+    out.distance = RAY_FAR
+    return out
+
+
+@wp.func
+def sample_positional(light: LightData, p: wp.vec3) -> LightSample:
+    """A point light's direction, distance and inverse-square irradiance (no spot cone)."""
+    out = LightSample()
     d = light.position - p
     dist_sq = wp.dot(d, d)
     dist = wp.sqrt(dist_sq)
@@ -62,6 +68,28 @@ def sample_light(light: LightData, p: wp.vec3) -> LightSample:
         out.to_light = -light.direction
     out.distance = dist
     out.irradiance = clamp_to_float32_max(light.intensity / wp.max(dist_sq, MIN_DISTANCE_SQ))
-    if light.kind == LIGHT_SPOT:
-        out.irradiance = out.irradiance * spot_attenuation(light, out.to_light)
     return out
+
+
+@functools.cache
+def light_sampler(point: bool, directional: bool, spot: bool):
+    """sample_light(light, p) -> LightSample compiled for the light kinds a scene has: the code of
+    an absent kind is not generated."""
+
+    @wp.func
+    def sample_light(light: LightData, p: wp.vec3) -> LightSample:
+        out = LightSample()
+        if wp.static(directional):
+            if wp.static(point or spot):
+                if light.kind == LIGHT_DIRECTIONAL:
+                    return sample_directional(light)
+            else:
+                return sample_directional(light)
+        if wp.static(point or spot):
+            out = sample_positional(light, p)
+            if wp.static(spot):
+                if light.kind == LIGHT_SPOT:
+                    out.irradiance = out.irradiance * spot_attenuation(light, out.to_light)
+        return out
+
+    return sample_light

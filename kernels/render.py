@@ -7,9 +7,9 @@ from typing import Any
 
 import warp as wp
 
-from .brdf import brdf_cook_torrance
+from .brdf import brdf_for
 from .camera import CameraData, camera_ray_direction
-from .lights import sample_light
+from .lights import light_sampler
 from .normal_mapping import perturb_normal
 from .robust import (
     RAY_FAR,
@@ -83,11 +83,11 @@ def render_kernel(features):
 
     Each flag is a compile-time constant: code for an absent effect is not generated at all.
     """
-    textured = features.textures
-    normal_mapping = features.normal_mapping
-    shadows = features.shadows
-    supersampling = features.supersampling
-    pass_through = features.pass_through
+    f = features
+    textured = f.textures
+    brdf = brdf_for(f.diffuse, f.specular)
+    sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
+    lit = f.point_lights or f.directional_lights or f.spot_lights
 
     @wp.func
     def texture_or_one(scene: SceneData, index: int, uv: wp.vec2) -> wp.vec4:
@@ -102,7 +102,7 @@ def render_kernel(features):
             return True
         if mat.alpha_mask == 1:
             alpha = mat.base_color[3] * interpolate(scene.colors, h)[3]
-            if wp.static(textured):
+            if wp.static(f.base_color_texture):
                 alpha = alpha * texture_or_one(scene, mat.base_color_texture, interpolate(scene.uvs, h))[3]
             return alpha < mat.alpha_cutoff
         return False
@@ -110,40 +110,47 @@ def render_kernel(features):
     @wp.func
     def shade(scene: SceneData, h: SurfaceHit, view: wp.vec3, shading_normal: wp.vec3) -> wp.vec3:
         mat = scene.materials[h.material]
-        base = wp.vec3(mat.base_color[0], mat.base_color[1], mat.base_color[2])
-        vertex_color = interpolate(scene.colors, h)
-        base = wp.cw_mul(base, wp.vec3(vertex_color[0], vertex_color[1], vertex_color[2]))
-        metallic = mat.metallic
-        roughness = mat.roughness
-        emissive = mat.emissive
+        radiance = wp.vec3(0.0)
+        uv = wp.vec2(0.0)
         if wp.static(textured):
             uv = interpolate(scene.uvs, h)
-            bc = texture_or_one(scene, mat.base_color_texture, uv)
-            base = wp.cw_mul(base, wp.vec3(bc[0], bc[1], bc[2]))
-            mr = texture_or_one(scene, mat.metallic_roughness_texture, uv)
-            roughness = roughness * mr[1]
-            metallic = metallic * mr[2]
-            em = texture_or_one(scene, mat.emissive_texture, uv)
-            emissive = wp.cw_mul(emissive, wp.vec3(em[0], em[1], em[2]))
-        n = shading_normal
-        radiance = emissive
-        for i in range(scene.num_lights):
-            ls = sample_light(scene.lights[i], h.p)
-            # light below the geometric surface: shading normals must not leak it through
-            if wp.dot(h.ng, ls.to_light) <= 0.0:
-                continue
-            f = brdf_cook_torrance(n, view, ls.to_light, base, metallic, roughness, mat.specular)
-            n_dot_l = wp.dot(n, ls.to_light)
-            if n_dot_l <= 0.0:
-                continue
-            if wp.static(shadows):
-                origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
-                max_t = RAY_FAR
-                if ls.distance < RAY_FAR:
-                    max_t = wp.length(scene.lights[i].position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
-                if wp.mesh_query_ray_anyhit(scene.mesh, origin, ls.to_light, max_t):
+        if wp.static(f.emission):
+            radiance = mat.emissive
+            if wp.static(f.emissive_texture):
+                em = texture_or_one(scene, mat.emissive_texture, uv)
+                radiance = wp.cw_mul(radiance, wp.vec3(em[0], em[1], em[2]))
+        if wp.static(lit):
+            base = wp.vec3(mat.base_color[0], mat.base_color[1], mat.base_color[2])
+            if wp.static(f.vertex_colors):
+                vertex_color = interpolate(scene.colors, h)
+                base = wp.cw_mul(base, wp.vec3(vertex_color[0], vertex_color[1], vertex_color[2]))
+            metallic = mat.metallic
+            roughness = mat.roughness
+            if wp.static(f.base_color_texture):
+                bc = texture_or_one(scene, mat.base_color_texture, uv)
+                base = wp.cw_mul(base, wp.vec3(bc[0], bc[1], bc[2]))
+            if wp.static(f.metallic_roughness_texture):
+                mr = texture_or_one(scene, mat.metallic_roughness_texture, uv)
+                roughness = roughness * mr[1]
+                metallic = metallic * mr[2]
+            n = shading_normal
+            for i in range(scene.num_lights):
+                ls = sample_light(scene.lights[i], h.p)
+                # light below the geometric surface: shading normals must not leak it through
+                if wp.dot(h.ng, ls.to_light) <= 0.0:
                     continue
-            radiance = radiance + wp.cw_mul(f, ls.irradiance) * n_dot_l
+                n_dot_l = wp.dot(n, ls.to_light)
+                if n_dot_l <= 0.0:
+                    continue
+                if wp.static(f.shadows):
+                    origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
+                    max_t = RAY_FAR
+                    if ls.distance < RAY_FAR:
+                        max_t = wp.length(scene.lights[i].position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
+                    if wp.mesh_query_ray_anyhit(scene.mesh, origin, ls.to_light, max_t):
+                        continue
+                fr = brdf(n, view, ls.to_light, base, metallic, roughness, mat.specular)
+                radiance = radiance + wp.cw_mul(fr, ls.irradiance) * n_dot_l
         return radiance
 
     @wp.func
@@ -153,7 +160,7 @@ def render_kernel(features):
         if h.back_face == 1:
             front_ng = -h.ng
         n = safe_normalize(interpolate(scene.normals, h), front_ng)
-        if wp.static(normal_mapping):
+        if wp.static(f.normal_mapping):
             mat = scene.materials[h.material]
             if mat.normal_texture != NO_TEXTURE:
                 texel = texture_or_one(scene, mat.normal_texture, interpolate(scene.uvs, h))
@@ -189,7 +196,7 @@ def render_kernel(features):
         depth = float(RAY_FAR)
         for s in range(spp):
             offset = wp.vec2(0.5, 0.5)
-            if wp.static(supersampling):
+            if wp.static(f.supersampling):
                 offset = multi_jittered_sample(s, grid_m, grid_n, pixel_seed)
             d = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1])
             origin = cam.eye
@@ -198,25 +205,29 @@ def render_kernel(features):
                 if not q.result:
                     break
                 h = surface_hit(scene, q.face, q.u, q.v, d)
-                if wp.static(pass_through):
+                if wp.static(f.pass_through):
                     if is_culled(scene, h):
                         origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
                         continue
-                n = shading_normal(scene, h)
+                n = wp.vec3(0.0)
+                if wp.static(lit or f.aovs):
+                    n = shading_normal(scene, h)
                 radiance = radiance + shade(scene, h, -d, n)
-                normal_sum = normal_sum + n
                 hits = hits + 1
-                depth = wp.min(depth, wp.length(h.p - cam.eye))
+                if wp.static(f.aovs):
+                    normal_sum = normal_sum + n
+                    depth = wp.min(depth, wp.length(h.p - cam.eye))
                 break
         inv_spp = 1.0 / float(spp)
         alpha = float(hits) * inv_spp
         out_rgb[py, px] = clamp_to_float32_max(radiance * inv_spp + background * (1.0 - alpha))
         out_alpha[py, px] = alpha
-        if hits > 0:
-            out_depth[py, px] = depth
-            out_normal[py, px] = safe_normalize(normal_sum, wp.vec3(0.0))
-        else:
-            out_depth[py, px] = wp.inf
-            out_normal[py, px] = wp.vec3(0.0)
+        if wp.static(f.aovs):
+            if hits > 0:
+                out_depth[py, px] = depth
+                out_normal[py, px] = safe_normalize(normal_sum, wp.vec3(0.0))
+            else:
+                out_depth[py, px] = wp.inf
+                out_normal[py, px] = wp.vec3(0.0)
 
     return render_tile

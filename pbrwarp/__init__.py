@@ -11,13 +11,14 @@ from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeE
 from .frame import Frame
 from .lights import DirectionalLight, PointLight, SpotLight
 from .materials import Material
-from .render import render
+from .features import Features
+from .render import explain, render
 from .scene import Primitive, Scene
 from .textures import Texture
 
 __all__ = [
-    "AssetFormatError", "AssetNotFoundError", "Camera", "DirectionalLight", "Frame", "FrameCheck", "InputError",
+    "AssetFormatError", "AssetNotFoundError", "Camera", "DirectionalLight", "Features", "Frame", "FrameCheck", "InputError",
     "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "Scene", "SpotLight",
-    "Texture", "check", "render",
+    "Texture", "check", "explain", "render",
 ]
 __version__ = "0.1.0"

@@ -33,7 +33,10 @@ def check(frame) -> FrameCheck:
 
     >>> report = pw.check(frame); assert report.ok, report
     """
-    rgb, normal, alpha, depth = frame.rgb, frame.normal, frame.alpha, frame.depth
+    rgb, alpha = frame.rgb, frame.alpha
+    # without AOVs (render(aovs=False)) there is no depth or normal to check
+    normal = frame.normal if frame.normal is not None else np.zeros_like(rgb)
+    depth = frame.depth if frame.depth is not None else np.zeros_like(alpha)
     hit = alpha > 0
     nan = np.isnan(rgb).any(-1) | np.isnan(normal).any(-1) | np.isnan(alpha) | np.isnan(depth)
     inf = np.isinf(rgb).any(-1) | np.isinf(normal).any(-1) | np.isinf(alpha) | (np.isinf(depth) & hit)

@@ -1,30 +1,134 @@
-"""Which effects a render needs: one immutable, hashable value per (scene, render options).
+"""Which effects a render needs: one immutable, hashable Features value per (scene, options).
 
-The render kernel is compiled per Features value (kernels/render.py), so an effect that a scene
-does not call for is absent from the generated code rather than skipped at run time.
+The render kernel is compiled per Features value (kernels/render.py): an effect a scene does not
+call for is absent from the generated code, not skipped at run time. Only *which* effects exist
+is in the key; camera, light positions and colours, and material factors are kernel arguments,
+so changing them never recompiles.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
+from .lights import DIRECTIONAL, POINT, SPOT
+
 
 @dataclass(frozen=True)
 class Features:
-    textures: bool
-    normal_mapping: bool
-    shadows: bool
-    supersampling: bool
-    # some surface can be passed through by camera rays: a single-sided back face or an alpha mask
-    pass_through: bool
+    base_color_texture: bool = True
+    metallic_roughness_texture: bool = True
+    emissive_texture: bool = True
+    normal_mapping: bool = True
+    vertex_colors: bool = True
+    emission: bool = True
+    diffuse: bool = True
+    specular: bool = True
+    point_lights: bool = True
+    directional_lights: bool = True
+    spot_lights: bool = True
+    shadows: bool = True
+    supersampling: bool = True
+    # camera rays may pass through surfaces: single-sided back faces, alpha masks
+    pass_through: bool = True
+    # depth and normal outputs
+    aovs: bool = True
+
+    @property
+    def textures(self) -> bool:
+        return self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture or self.normal_mapping
+
+    @classmethod
+    def everything(cls) -> "Features":
+        """Every effect compiled in: the unspecialized kernel, the reference for specialization."""
+        return cls()
 
 
-def scene_features(gpu_scene, shadows: bool, spp: int) -> Features:
-    """The Features a compiled scene needs under the given render options."""
-    return Features(
-        textures=gpu_scene.has_textures,
-        normal_mapping=gpu_scene.has_normal_maps,
-        shadows=bool(shadows) and gpu_scene.num_lights > 0,
-        supersampling=spp > 1,
-        pass_through=gpu_scene.has_pass_through,
-    )
+@dataclass(frozen=True)
+class Decision:
+    name: str
+    present: bool
+    why: str
+
+
+def _is_convex(prim) -> bool:
+    """Whether a primitive is one closed convex surface (cached: the hull is costly for big meshes)."""
+    cached = prim.__dict__.get("_convex")
+    if cached is None:
+        import trimesh
+
+        mesh = trimesh.Trimesh(prim.positions, prim.faces, process=False)
+        cached = prim.__dict__["_convex"] = bool(mesh.is_watertight and mesh.is_convex)
+    return cached
+
+
+def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool) -> list[Decision]:
+    """Every effect with whether the render simulates it and why, in the order explain prints."""
+    prims = scene.primitives
+    rows = gpu.material_rows
+    mats = [p.material for p in prims]
+    kinds = {light.kind for light in scene.lights}
+    count = {k: sum(1 for light in scene.lights if light.kind == k) for k in (POINT, DIRECTIONAL, SPOT)}
+
+    def slot(attr, label):
+        users = sum(1 for r in rows if getattr(r, attr) >= 0)
+        return (users > 0, f"{label}: {users} of {len(rows)} meshes" if users else f"no {label}s")
+
+    decisions = []
+
+    def add(name, present, why):
+        decisions.append(Decision(name, bool(present), why))
+
+    for name, label in (("point_lights", "point light"), ("directional_lights", "directional light"), ("spot_lights", "spot light")):
+        kind = {"point_lights": POINT, "directional_lights": DIRECTIONAL, "spot_lights": SPOT}[name]
+        add(name, kind in kinds, f"{count[kind]} {label}{'s' if count[kind] != 1 else ''}" if kind in kinds else f"no {label}s")
+    if not scene.lights:
+        add("diffuse", False, "no lights: only emission and the background")
+        add("specular", False, "no lights: no reflection")
+    else:
+        diffuse = any(m.metallic < 1.0 or m.metallic_roughness_texture is not None for m in mats)
+        add("diffuse", diffuse, "Lambert diffuse" if diffuse else "no diffuse: every material is fully metallic")
+        specular = any(m.specular > 0.0 or m.metallic > 0.0 for m in mats)
+        add("specular", specular, "Cook-Torrance specular (GGX, Smith/Schlick-GGX, Schlick Fresnel)" if specular
+            else "no specular lobe: every material has specular = 0 and metallic = 0")
+    if not shadows:
+        add("shadows", False, "no shadow rays: shadows=False")
+    elif not scene.lights:
+        add("shadows", False, "no shadow rays: no lights")
+    elif len(prims) == 1 and _is_convex(prims[0]):
+        add("shadows", False, "no shadow rays: one convex mesh cannot shadow itself beyond what n.l does")
+    else:
+        add("shadows", True, f"shadow rays: {len(scene.lights)} per hit, against {scene.triangle_count:,} triangles")
+    present, why = slot("base_color_texture", "base colour texture")
+    add("base_color_texture", present, why)
+    present, why = slot("metallic_roughness_texture", "metallic-roughness texture")
+    add("metallic_roughness_texture", present, why)
+    present, why = slot("emissive_texture", "emissive texture")
+    add("emissive_texture", present, why)
+    present, why = slot("normal_texture", "normal map")
+    add("normal_mapping", present, why + ("" if present else ": no tangent frames"))
+    emitters = sum(1 for m in mats if max(m.emissive) > 0.0)
+    add("emission", emitters, f"emission: {emitters} materials" if emitters else "no emission: every emissive factor is 0")
+    coloured = sum(1 for p in prims if p.colors is not None and not np.all(p.colors == 1.0))
+    add("vertex_colors", coloured, f"vertex colours: {coloured} meshes" if coloured else "no vertex colours")
+    add("supersampling", spp > 1, f"{spp} stratified samples per pixel" if spp > 1 else "one ray through each pixel centre (spp = 1)")
+    single = sum(1 for m in mats if not m.double_sided or m.alpha_mode == "MASK")
+    add("pass_through", single, f"camera rays pass single-sided back faces and alpha cut-outs ({single} materials)"
+        if single else "no pass-through: every material is double-sided and opaque")
+    add("aovs", aovs, "depth and normal outputs" if aovs else "no depth and normal outputs: aovs=False")
+    return decisions
+
+
+def scene_features(scene, gpu, *, shadows: bool, spp: int, aovs: bool = True) -> Features:
+    """The Features a scene needs under the given render options."""
+    return Features(**{d.name: d.present for d in decide(scene, gpu, shadows=shadows, spp=spp, aovs=aovs)})
+
+
+def describe(decisions: list[Decision]) -> str:
+    """The text of pw.explain: what is simulated, then what was dropped and why."""
+    on = [d.why for d in decisions if d.present]
+    off = [d.why for d in decisions if not d.present]
+    lines = ["simulated:"] + [f"  + {w}" for w in on] + ["not simulated:"] + [f"  - {w}" for w in dict.fromkeys(off)]
+    return "\n".join(lines)
+

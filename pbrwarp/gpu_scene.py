@@ -54,10 +54,8 @@ class _Texels:
 @dataclass
 class GpuScene:
     data: SceneData
-    num_lights: int
-    has_textures: bool
-    has_normal_maps: bool
-    has_pass_through: bool
+    # one row per primitive, as uploaded (texture slots are -1 where a mesh has no UVs)
+    material_rows: list
     # kept alive while ``data`` refers to them
     _keep: tuple
 
@@ -220,12 +218,4 @@ def upload(scene) -> GpuScene:
     data.textures, data.texels = texels.table, texels.texels
     data.lights = wp.array(lights if lights else [LightData()], dtype=LightData, device="cpu")
     data.num_lights = len(lights)
-    return GpuScene(
-        data=data,
-        num_lights=len(lights),
-        has_textures=any(m.base_color_texture >= 0 or m.metallic_roughness_texture >= 0 or m.emissive_texture >= 0
-                         or m.normal_texture >= 0 for m in materials),
-        has_normal_maps=any(m.normal_texture >= 0 for m in materials),
-        has_pass_through=any(not p.material.double_sided or p.material.alpha_mode == "MASK" for p in prims),
-        _keep=(geometry, texels, data.materials, data.lights),
-    )
+    return GpuScene(data=data, material_rows=materials, _keep=(geometry, texels, data.materials, data.lights))

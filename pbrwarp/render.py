@@ -14,7 +14,7 @@ import warp as wp
 from . import validate
 from .camera import Camera
 from .errors import InputTypeError
-from .features import scene_features
+from .features import Features, decide, describe, scene_features
 from .frame import Frame
 from .gpu_scene import upload
 from .scene import Scene
@@ -78,6 +78,8 @@ def render(
     background=(0.0, 0.0, 0.0),
     seed: int = 0,
     progress: bool | None = None,
+    aovs: bool = True,
+    specialize: bool = True,
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
@@ -86,7 +88,10 @@ def render(
     ``threads`` defaults to every core; the image does not depend on it. ``shadows`` traces one
     shadow ray per light and sample. ``background`` is the linear radiance where no surface is
     hit (``frame.alpha`` records coverage for transparent output). ``progress``: None shows a bar
-    (if tqdm is installed) for renders longer than about a second, False never.
+    (if tqdm is installed) for renders longer than about a second, False never. ``aovs=False``
+    skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are then None).
+    ``specialize=False`` runs the kernel with every effect compiled in instead of the one built
+    for this scene (same image, slower; for comparison). :func:`explain` says what is simulated.
     """
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
@@ -104,13 +109,15 @@ def render(
         raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
 
     gpu = upload(scene)
-    kernel = render_kernel(scene_features(gpu, shadows, spp))
+    features = scene_features(scene, gpu, shadows=shadows, spp=spp, aovs=aovs) if specialize else Features.everything()
+    kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
     out_rgb = wp.empty((height, width), dtype=wp.vec3, device="cpu")
     out_alpha = wp.empty((height, width), dtype=float, device="cpu")
-    out_depth = wp.empty((height, width), dtype=float, device="cpu")
-    out_normal = wp.empty((height, width), dtype=wp.vec3, device="cpu")
+    aov_shape = (height, width) if features.aovs else (1, 1)
+    out_depth = wp.empty(aov_shape, dtype=float, device="cpu")
+    out_normal = wp.empty(aov_shape, dtype=wp.vec3, device="cpu")
     bg = wp.vec3(*background)
 
     def launch(band):
@@ -139,8 +146,17 @@ def render(
             bar.close()
     return Frame(
         rgb=out_rgb.numpy().reshape(height, width, 3),
-        depth=out_depth.numpy(),
-        normal=out_normal.numpy().reshape(height, width, 3),
+        depth=out_depth.numpy() if features.aovs else None,
+        normal=out_normal.numpy().reshape(height, width, 3) if features.aovs else None,
         alpha=out_alpha.numpy(),
         background=background,
     )
+
+
+def explain(scene: Scene, shadows: bool = True, spp: int = 1, aovs: bool = True, **_render_options) -> str:
+    """Which effects :func:`render` with these options simulates for ``scene``, and why each
+    absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow itself ...")."""
+    if not isinstance(scene, Scene):
+        raise InputTypeError(f"explain takes a pbrwarp.Scene, got {type(scene).__name__}")
+    spp = validate.positive_int(spp, "spp")
+    return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs))
