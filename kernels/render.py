@@ -231,3 +231,14 @@ def render_kernel(features):
                 out_normal[py, px] = wp.vec3(0.0)
 
     return render_tile
+
+
+def generated_source(kernel) -> str:
+    """The C++ Warp generated for ``kernel`` (from its on-disk kernel cache), to prove what a
+    specialized kernel does and does not contain."""
+    import os
+
+    kernel.module.load(wp.get_device("cpu"))
+    name = kernel.module.get_module_identifier()
+    with open(os.path.join(wp.config.kernel_cache_dir, name, name + ".cpp"), encoding="utf-8") as f:
+        return f.read()

@@ -206,6 +206,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="linear radiance where no surface is hit (default 0,0,0)")
         p.add_argument("--transparent", action="store_true",
                        help="write coverage as alpha (PNG, WebP, TIFF) instead of the background")
+        p.add_argument("--explain", action="store_true",
+                       help="print which effects are simulated and why the others are not, then render")
 
     render = sub.add_parser("render", help="render a scene file (.glb .gltf .obj .ply .stl .off)",
                             formatter_class=argparse.RawDescriptionHelpFormatter, epilog=LIGHT_HELP)
@@ -279,8 +281,10 @@ def _shoulder_light(camera: Camera) -> DirectionalLight:
 
 
 def _render_and_save(scene, camera, args, background) -> None:
-    from .render import render
+    from .render import explain, render
 
+    if args.explain:
+        print(explain(scene, shadows=args.shadows, spp=args.spp))
     width, height = args.size
     frame = render(scene, camera, width=width, height=height, spp=args.spp, threads=args.threads,
                    shadows=args.shadows, background=background)

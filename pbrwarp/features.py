@@ -40,9 +40,10 @@ class Features:
         return self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture or self.normal_mapping
 
     @classmethod
-    def everything(cls) -> "Features":
-        """Every effect compiled in: the unspecialized kernel, the reference for specialization."""
-        return cls()
+    def everything(cls, spp: int = 1, aovs: bool = True) -> "Features":
+        """Every effect compiled in: the unspecialized kernel, the reference for specialization.
+        Sampling follows spp (pixel centres for 1), outputs follow aovs, as they are options."""
+        return cls(supersampling=spp > 1, aovs=aovs)
 
 
 @dataclass(frozen=True)

@@ -109,7 +109,7 @@ def render(
         raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
 
     gpu = upload(scene)
-    features = scene_features(scene, gpu, shadows=shadows, spp=spp, aovs=aovs) if specialize else Features.everything()
+    features = scene_features(scene, gpu, shadows=shadows, spp=spp, aovs=aovs) if specialize else Features.everything(spp, aovs)
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)

@@ -1,0 +1,131 @@
+"""Specialization: kernels built per scene contain only the effects it calls for, render the same
+image as the kernel with every effect, and say why an effect was dropped."""
+
+import numpy as np
+import pytest
+import trimesh
+
+import pbrwarp as pw
+from pbrwarp.features import scene_features
+from pbrwarp.gpu_scene import upload
+from pbrwarp.kernels.render import generated_source, render_kernel
+
+from scenes import box, head_on_camera, quad, render_checked
+
+
+def sphere_scene(material, lights, sphere=None):
+    scene = pw.Scene()
+    scene.add_mesh(sphere or trimesh.creation.icosphere(subdivisions=3), material)
+    for light in lights:
+        scene.add_light(light)
+    return scene
+
+
+def textured_material(**kw):
+    rng = np.random.default_rng(0)
+    return pw.Material(
+        base_color_texture=rng.uniform(0, 1, (16, 16, 3)).astype(np.float32),
+        metallic_roughness_texture=rng.uniform(0, 1, (8, 8, 3)).astype(np.float32),
+        normal_texture=(np.array([0.2, -0.1, 0.97]) / np.linalg.norm([0.2, -0.1, 0.97]) + 1) / 2 * np.ones((4, 4, 3)),
+        emissive_texture=rng.uniform(0, 1, (4, 4, 3)).astype(np.float32), emissive=(0.1, 0.2, 0.05), **kw)
+
+
+def uv_sphere():
+    mesh = trimesh.creation.uv_sphere(count=(24, 24))
+    uv = np.column_stack([np.arctan2(mesh.vertices[:, 1], mesh.vertices[:, 0]) / (2 * np.pi) + 0.5,
+                          np.arccos(np.clip(mesh.vertices[:, 2], -1, 1)) / np.pi])
+    mesh.visual = trimesh.visual.texture.TextureVisuals(uv=np.column_stack([uv[:, 0], 1 - uv[:, 1]]))
+    return mesh
+
+
+DIRECTIONAL = pw.DirectionalLight(direction=(-0.3, -0.5, -1.0), intensity=3.0)
+POINT = pw.PointLight(position=(2.0, 2.0, 2.0), intensity=30.0)
+SPOT = pw.SpotLight(position=(-2.0, 2.0, 2.5), direction=(1, -1, -1.2), intensity=50.0, inner_cone=0.2, outer_cone=0.6)
+
+
+def scenes():
+    """(name, scene, features expected absent)."""
+    floor_and_sphere = sphere_scene(pw.Material(base_color=(0.7, 0.4, 0.3), roughness=0.4), [POINT, SPOT])
+    floor_and_sphere.add_mesh(box((6, 0.2, 6), (0, -1.2, 0)), pw.Material())
+    mixed = sphere_scene(pw.Material(metallic=0.5, roughness=0.3), [POINT, DIRECTIONAL, SPOT])
+    mixed.add_mesh(box((6, 0.2, 6), (0, -1.2, 0)), pw.Material(double_sided=False, alpha_mode="MASK", alpha_cutoff=0.3,
+                                                                 base_color=(0.5, 0.5, 0.5, 0.6)))
+    return [
+        ("bare convex", sphere_scene(pw.Material(), [DIRECTIONAL]),
+         {"shadows", "base_color_texture", "normal_mapping", "emission", "point_lights", "spot_lights", "pass_through"}),
+        ("all metal", sphere_scene(pw.Material(metallic=1.0, roughness=0.3), [POINT]), {"diffuse", "directional_lights"}),
+        ("pure lambert", sphere_scene(pw.Material(specular=0.0), [SPOT]), {"specular"}),
+        ("no lights", sphere_scene(pw.Material(emissive=(0.5, 0.2, 0.1)), []), {"diffuse", "specular", "shadows"}),
+        ("textured", sphere_scene(textured_material(), [POINT, DIRECTIONAL], uv_sphere()), {"spot_lights", "shadows"}),
+        ("shadows", floor_and_sphere, {"directional_lights", "normal_mapping"}),
+        ("everything", mixed, set()),
+    ]
+
+
+@pytest.mark.parametrize("name,scene,absent", scenes(), ids=[s[0] for s in scenes()])
+@pytest.mark.parametrize("spp", [1, 4])
+def test_specialized_image_equals_the_all_effects_image(name, scene, absent, spp):
+    features = scene_features(scene, upload(scene), shadows=True, spp=spp)
+    dropped = {k for k, v in features.__dict__.items() if not v}
+    assert absent <= dropped, (name, dropped)
+    cam = pw.Camera.look_at(eye=(0.5, 1.5, 4.0), target=(0, -0.3, 0))
+    special = render_checked(scene, cam, size=(64, 48), spp=spp)
+    general = render_checked(scene, cam, size=(64, 48), spp=spp, specialize=False)
+    # the math of the dropped code is identical to what it would have added (zeros, ones)
+    np.testing.assert_allclose(special.rgb, general.rgb, rtol=1e-6, atol=1e-30)
+    assert np.array_equal(special.alpha, general.alpha)
+    assert np.array_equal(special.depth, general.depth) and np.array_equal(special.normal, general.normal)
+
+
+def test_shadows_false_and_no_aovs():
+    scene = scenes()[5][1]
+    cam = pw.Camera.look_at(eye=(0.5, 1.5, 4.0), target=(0, -0.3, 0))
+    frame = render_checked(scene, cam, size=(32, 24), aovs=False)
+    assert frame.depth is None and frame.normal is None
+    np.testing.assert_array_equal(frame.rgb, render_checked(scene, cam, size=(32, 24)).rgb)
+    features = scene_features(scene, upload(scene), shadows=False, spp=1, aovs=False)
+    assert not features.shadows and not features.aovs
+
+
+def test_bare_scene_kernel_has_no_shadow_rays_textures_or_tangent_frames():
+    scene = scenes()[0][1]
+    source = generated_source(render_kernel(scene_features(scene, upload(scene), shadows=True, spp=1)))
+    for absent in ("mesh_query_ray_anyhit", "sample_texture", "perturb_normal", "orthonormal_tangent",
+                   "spot_attenuation", "sample_positional", "multi_jittered_sample"):
+        assert absent not in source, absent
+    assert "mesh_query_ray" in source and "D_GGX" in source  # it is the right file
+    everything = generated_source(render_kernel(pw.Features.everything(spp=4)))
+    for present in ("mesh_query_ray_anyhit", "sample_texture", "perturb_normal", "spot_attenuation", "multi_jittered_sample"):
+        assert present in everything, present
+
+
+def test_explain_says_what_and_why():
+    text = pw.explain(scenes()[0][1])
+    assert "no shadow rays: one convex mesh" in text
+    assert "no normal maps" in text and "1 directional light" in text
+    assert "no shadow rays: shadows=False" in pw.explain(scenes()[5][1], shadows=False)
+    assert "no lights" in pw.explain(scenes()[3][1])
+    assert "4 stratified samples per pixel" in pw.explain(scenes()[0][1], spp=4)
+
+
+def test_changing_factors_keeps_the_variant_changing_effects_may_not():
+    material = pw.Material(metallic=0.5, roughness=0.5)
+    scene = sphere_scene(material, [POINT])
+    before = scene_features(scene, upload(scene), shadows=True, spp=1)
+    material.roughness, material.base_color = 0.1, (0.2, 0.3, 0.4, 1.0)
+    scene.lights[0].position = (-1.0, 3.0, 1.0)
+    assert scene_features(scene, upload(scene), shadows=True, spp=1) == before
+    material.metallic = 1.0
+    assert not scene_features(scene, upload(scene), shadows=True, spp=1).diffuse
+
+
+def test_cli_explain(tmp_path, capsys):
+    from pbrwarp.cli import main
+
+    mesh = tmp_path / "ball.obj"
+    trimesh.creation.icosphere(subdivisions=2).export(mesh)
+    assert main(["render", str(mesh), "-o", str(tmp_path / "out.png"), "--size", "16x16", "--explain",
+                 "--light", "dir:0,-1,-1:3"]) == 0
+    out = capsys.readouterr().out
+    assert "no shadow rays: one convex mesh" in out and "simulated:" in out
+    assert (tmp_path / "out.png").exists()
