@@ -77,6 +77,14 @@ def interpolate(a: wp.array(dtype=Any), h: SurfaceHit):
     return a[h.i0] * h.b0 + a[h.i1] * h.b1 + a[h.i2] * h.b2
 
 
+@wp.func
+def texture_or_one(scene: SceneData, index: int, uv: wp.vec2) -> wp.vec4:
+    """Texture ``index`` at uv, or white for an empty slot."""
+    if index == NO_TEXTURE:
+        return wp.vec4(1.0)
+    return sample_texture(scene.textures[index], scene.texels, uv)
+
+
 @functools.cache
 def render_kernel(features):
     """The tile kernel for a ``features`` value (hashable; see pbrwarp.features.Features).
@@ -88,12 +96,6 @@ def render_kernel(features):
     brdf = brdf_for(f.diffuse, f.specular)
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
     lit = f.point_lights or f.directional_lights or f.spot_lights
-
-    @wp.func
-    def texture_or_one(scene: SceneData, index: int, uv: wp.vec2) -> wp.vec4:
-        if index == NO_TEXTURE:
-            return wp.vec4(1.0)
-        return sample_texture(scene.textures[index], scene.texels, uv)
 
     @wp.func
     def is_culled(scene: SceneData, h: SurfaceHit) -> bool:
