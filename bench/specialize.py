@@ -1,11 +1,12 @@
 """What specializing kernels per scene buys: specialized vs all-effects kernel, same scene.
 
-    python bench/specialize.py [--repeats 5] [--size 512]
+    python bench/specialize.py [--repeats 5] [--size 512] [--cold]
 
 Scenes: a bare one (one untextured convex mesh, one directional light), a textured,
 normal-mapped torus under a point light, and the demo scene. Frames on every core, medians of
 --repeats after a warm-up, both kernels timed in the same run. Also counts the kernel variants
-the session compiled and the compile (or cache load) time of each. Writes
+the session compiled and the compile (or cache load) time of each; --cold compiles them into an
+empty kernel cache, as a user's first session does. Writes
 bench/results/specialize.{md,json}.
 """
 
@@ -53,8 +54,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--cold", action="store_true", help="compile into an empty kernel cache, as a first session does")
     args = ap.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING
+    if args.cold:
+        import tempfile
+
+        wp.config.kernel_cache_dir = tempfile.mkdtemp(prefix="pbrwarp-bench-cache-")
     rows, variants = [], {}
     for name, scene, cam in bench_scenes():
         features = scene_features(scene, upload(scene), shadows=True, spp=1)
@@ -80,7 +86,7 @@ def main(argv=None):
               + ", ".join(f"{t:.2f} s" for t in variants.values())
               + " (a few seconds means compiled now, milliseconds loaded from Warp's disk cache)."]
     command = "python bench/specialize.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + \
-        (f" --size {args.size}" if args.size != 512 else "")
+        (f" --size {args.size}" if args.size != 512 else "") + (" --cold" if args.cold else "")
     write_results("specialize", command, {"rows": rows, "variant_load_seconds": list(variants.values())},
                   "\n".join(lines) + "\n")
 
