@@ -26,7 +26,7 @@ import pbrwarp as pw  # noqa: E402
 from pbrwarp import meshes  # noqa: E402
 from pbrwarp.features import Features, scene_features  # noqa: E402
 from pbrwarp.gpu_scene import upload  # noqa: E402
-from pbrwarp.kernels.render import render_kernel  # noqa: E402
+from pbrwarp.kernels.render import load_for_cpu, render_kernel  # noqa: E402
 
 
 def bench_scenes():
@@ -46,7 +46,7 @@ def compile_time(features: Features) -> float:
     """Seconds to build (or load from Warp's disk cache) the kernel of ``features``."""
     kernel = render_kernel(features)
     t0 = time.perf_counter()
-    kernel.module.load(wp.get_device("cpu"))
+    load_for_cpu(kernel)
     return time.perf_counter() - t0
 
 

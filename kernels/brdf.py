@@ -1,5 +1,8 @@
-"""The BRDF of the seeds: Lambert diffuse plus Cook-Torrance specular (GGX, Smith/Schlick-GGX,
-Schlick Fresnel), metallic-roughness parameterized as in glTF. One small function per term."""
+"""The BRDF: Lambert diffuse plus Cook-Torrance specular, metallic-roughness parameterized as in
+glTF, with a ladder of rungs per term. One small function per term, named after its model.
+
+The default (the seeds' model) is Lambert, GGX, Smith/Schlick-GGX and Schlick Fresnel; the
+other rungs are cheaper or more exact alternatives chosen at compile time (pbrwarp.BRDF)."""
 
 import functools
 
@@ -47,6 +50,101 @@ def V_SmithSchlickGGX(n_dot_v: float, n_dot_l: float, roughness: float) -> float
 
 
 @wp.func
+def Fd_Burley(n_dot_v: float, n_dot_l: float, l_dot_h: float, roughness: float) -> float:
+    """Disney diffuse (Burley 2012): Lambert with retro-reflection at grazing angles,
+    F_D90 = 0.5 + 2 roughness (l.h)^2."""
+    f90 = 0.5 + 2.0 * roughness * l_dot_h * l_dot_h
+    xl = 1.0 - n_dot_l
+    xv = 1.0 - n_dot_v
+    light = 1.0 + (f90 - 1.0) * (xl * xl * xl * xl * xl)
+    view = 1.0 + (f90 - 1.0) * (xv * xv * xv * xv * xv)
+    return light * view / PI
+
+
+@wp.func
+def D_BlinnPhong(alpha: float, n_dot_h: float) -> float:
+    """Normalized Blinn-Phong NDF, (a_p + 2) / (2 pi) (n.h)^a_p (seed 002), with the exponent
+    mapped from GGX's alpha as a_p = 2 / alpha^2 - 2 (Walter et al. 2007)."""
+    if n_dot_h <= 0.0:
+        return 0.0
+    a2 = wp.max(alpha * alpha, MIN_ALPHA_SQ)
+    power = 2.0 / a2 - 2.0
+    return (power + 2.0) / (2.0 * PI) * wp.pow(wp.min(n_dot_h, 1.0), power)
+
+
+@wp.func
+def V_Implicit(n_dot_v: float, n_dot_l: float, alpha: float) -> float:
+    """The implicit geometry term G = n.l n.v (Hoffman 2010), so G / (4 n.l n.v) = 1/4."""
+    return 0.25
+
+
+@wp.func
+def V_SmithGGXSeparable(n_dot_v: float, n_dot_l: float, alpha: float) -> float:
+    """Exact separable Smith G1(v) G1(l) for GGX (Walter et al. 2007) over 4 n.l n.v, with
+    G1(x) = 2x / (x + sqrt(a^2 + (1 - a^2) x^2)) so that the cosines cancel."""
+    a2 = wp.max(alpha * alpha, MIN_ALPHA_SQ)
+    gv = n_dot_v + wp.sqrt(a2 + (1.0 - a2) * n_dot_v * n_dot_v)
+    gl = n_dot_l + wp.sqrt(a2 + (1.0 - a2) * n_dot_l * n_dot_l)
+    return 1.0 / (gv * gl)
+
+
+@wp.func
+def V_SmithGGXCorrelated(n_dot_v: float, n_dot_l: float, alpha: float) -> float:
+    """Height-correlated Smith G2 for GGX (Heitz 2014) over 4 n.l n.v (Filament's form)."""
+    a2 = wp.max(alpha * alpha, MIN_ALPHA_SQ)
+    lambda_v = n_dot_l * wp.sqrt(n_dot_v * n_dot_v * (1.0 - a2) + a2)
+    lambda_l = n_dot_v * wp.sqrt(n_dot_l * n_dot_l * (1.0 - a2) + a2)
+    return 0.5 / (lambda_v + lambda_l)
+
+
+@wp.func
+def V_SmithGGXCorrelatedFast(n_dot_v: float, n_dot_l: float, alpha: float) -> float:
+    """Hammon's linear approximation of the height-correlated Smith term (GDC 2017; Filament)."""
+    a = wp.max(alpha, wp.sqrt(MIN_ALPHA_SQ))
+    return 0.5 / (n_dot_l * (n_dot_v * (1.0 - a) + a) + n_dot_v * (n_dot_l * (1.0 - a) + a))
+
+
+@wp.func
+def F_None(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
+    """No Fresnel effect: the reflectance at normal incidence at every angle."""
+    return f0
+
+
+@wp.func
+def F_SphericalGaussian(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
+    """Schlick's Fresnel with (1 - v.h)^5 replaced by the spherical-Gaussian fit
+    2^((-5.55473 v.h - 6.98316) v.h) (Lagarde 2012; Karis 2013; seeds 002/004)."""
+    x = wp.clamp(v_dot_h, 0.0, 1.0)
+    return f0 + (f90 - f0) * wp.pow(2.0, (-5.55473 * x - 6.98316) * x)
+
+
+@wp.func
+def fresnel_dielectric(cos_i: float, eta: float) -> float:
+    """Unpolarized Fresnel reflectance of a dielectric interface with relative IOR eta (Born & Wolf)."""
+    c = wp.clamp(cos_i, 0.0, 1.0)
+    g_sq = eta * eta - 1.0 + c * c
+    if g_sq <= 0.0:
+        return 1.0
+    g = wp.sqrt(g_sq)
+    a = (g - c) / (g + c)
+    b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+    return 0.5 * a * a * (1.0 + b * b)
+
+
+@wp.func
+def F_Exact(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
+    """Exact dielectric Fresnel per channel, with the IOR that f0 implies,
+    eta = (1 + sqrt(f0)) / (1 - sqrt(f0)) (Fresnel 1823), scaled so that grazing reflectance is f90
+    (KHR_materials_specular)."""
+    out = wp.vec3(0.0)
+    for c in range(3):
+        if f90[c] > 0.0:
+            r = wp.sqrt(wp.clamp(f0[c] / f90[c], 0.0, 0.9999))
+            out[c] = f90[c] * fresnel_dielectric(v_dot_h, (1.0 + r) / (1.0 - r))
+    return out
+
+
+@wp.func
 def F_Schlick(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
     """Schlick's Fresnel approximation (Schlick 1994; seeds 001/002)."""
     x = wp.clamp(1.0 - v_dot_h, 0.0, 1.0)
@@ -67,16 +165,39 @@ def specular_f90(metallic: float, specular: float) -> wp.vec3:
     return wp.vec3(specular + (1.0 - specular) * metallic)
 
 
+DIFFUSE_MODELS = ("lambert", "burley")
+DISTRIBUTIONS = ("ggx", "blinn_phong")
+GEOMETRY_MODELS = ("implicit", "schlick_ggx", "smith_separable", "smith_correlated", "smith_correlated_fast")
+FRESNEL_MODELS = ("none", "schlick", "spherical_gaussian", "exact")
+_VISIBILITY = {"implicit": V_Implicit, "smith_separable": V_SmithGGXSeparable,
+               "smith_correlated": V_SmithGGXCorrelated, "smith_correlated_fast": V_SmithGGXCorrelatedFast}
+_FRESNEL = {"none": F_None, "schlick": F_Schlick, "spherical_gaussian": F_SphericalGaussian, "exact": F_Exact}
+
+
 @functools.cache
-def brdf_for(diffuse_lobe: bool, specular_lobe: bool):
-    """brdf(n, v, l, base_color, metallic, roughness, specular) -> f(l, v), the seeds' model:
-    (1 - F)(1 - metallic) c/pi + D F G / (4 n.l n.v), with G / (4 n.l n.v) evaluated as
-    V_SmithSchlickGGX; n.v is clamped to MIN_COSINE, n.l <= 0 gives 0.
+def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", distribution: str = "ggx",
+             geometry: str = "schlick_ggx", fresnel: str = "schlick"):
+    """brdf(n, v, l, base_color, metallic, roughness, specular) -> f(l, v):
+    (1 - F)(1 - metallic) c f_d + D F G / (4 n.l n.v), with G / (4 n.l n.v) evaluated in its
+    visibility form V; n.v is clamped to MIN_COSINE, n.l <= 0 gives 0. The defaults are the seeds'
+    model (f_d Lambert, GGX, Smith/Schlick-GGX, Schlick); the names pick other rungs per term.
 
     Compiled with only the lobes a scene needs: without ``specular_lobe`` (every material has
     specular = 0 and metallic = 0, so F = 0) the Fresnel, D and V code is not generated; without
-    ``diffuse_lobe`` (every material fully metallic) the Lambert code is not. Either gives bit for bit
-    what the full BRDF gives on such materials."""
+    ``diffuse_lobe`` (every material fully metallic) the diffuse code is not. Either gives bit for
+    bit what the full BRDF gives on such materials (for Fresnel models with F(f0 = f90 = 0) = 0)."""
+    for name, value, allowed in (("diffuse", diffuse, DIFFUSE_MODELS), ("distribution", distribution, DISTRIBUTIONS),
+                                 ("geometry", geometry, GEOMETRY_MODELS), ("fresnel", fresnel, FRESNEL_MODELS)):
+        if value not in allowed:
+            raise ValueError(f"unknown {name} model {value!r}; choose one of {allowed}")
+    fresnel_term = _FRESNEL[fresnel]
+    visibility = _VISIBILITY.get(geometry, V_Implicit)
+
+    @wp.func
+    def diffuse_term(n_dot_v: float, n_dot_l: float, l_dot_h: float, roughness: float) -> float:
+        if wp.static(diffuse == "burley"):
+            return Fd_Burley(n_dot_v, n_dot_l, l_dot_h, roughness)
+        return Fd_Lambert()
 
     @wp.func
     def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
@@ -84,26 +205,37 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool):
         n_dot_l = wp.dot(n, l)
         if n_dot_l <= 0.0:
             return wp.vec3(0.0)
+        n_dot_v = wp.max(wp.dot(n, v), MIN_COSINE)
+        h = safe_normalize(v + l, n)
         out = wp.vec3(0.0)
         if wp.static(specular_lobe):
-            n_dot_v = wp.max(wp.dot(n, v), MIN_COSINE)
-            h = safe_normalize(v + l, n)
             n_cross_h = wp.cross(n, h)
             n_dot_h = wp.min(wp.dot(n, h), 1.0)
             v_dot_h = wp.clamp(wp.dot(v, h), 0.0, 1.0)
             alpha = roughness * roughness
             f0 = specular_f0(base_color, metallic, specular)
-            F = F_Schlick(f0, specular_f90(metallic, specular), v_dot_h)
-            D = D_GGX(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
-            out = F * (D * V_SmithSchlickGGX(n_dot_v, n_dot_l, roughness))
+            F = fresnel_term(f0, specular_f90(metallic, specular), v_dot_h)
+            D = float(0.0)
+            if wp.static(distribution == "ggx"):
+                D = D_GGX(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
+            else:
+                D = D_BlinnPhong(alpha, n_dot_h)
+            V = float(0.0)
+            if wp.static(geometry == "schlick_ggx"):
+                V = V_SmithSchlickGGX(n_dot_v, n_dot_l, roughness)
+            else:
+                V = visibility(n_dot_v, n_dot_l, alpha)
+            out = F * (D * V)
             if wp.static(diffuse_lobe):
-                out = wp.cw_mul(wp.vec3(1.0) - F, base_color) * ((1.0 - metallic) * Fd_Lambert()) + out
+                fd = diffuse_term(n_dot_v, n_dot_l, wp.dot(l, h), roughness)
+                out = wp.cw_mul(wp.vec3(1.0) - F, base_color) * ((1.0 - metallic) * fd) + out
         elif wp.static(diffuse_lobe):
-            out = base_color * ((1.0 - metallic) * Fd_Lambert())
+            fd = diffuse_term(n_dot_v, n_dot_l, wp.dot(l, h), roughness)
+            out = base_color * ((1.0 - metallic) * fd)
         return out
 
     return brdf
 
 
-# The full model, every lobe compiled in.
+# The seeds' model, every lobe compiled in.
 brdf_cook_torrance = brdf_for(True, True)

@@ -5,6 +5,7 @@
 >>> pw.render(scene, pw.Camera.frame(scene), width=512, height=512).save("out.png")
 """
 
+from .brdf import BRDF
 from .camera import Camera
 from .diagnostics import FrameCheck, check
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError
@@ -17,7 +18,7 @@ from .scene import Primitive, Scene
 from .textures import Texture
 
 __all__ = [
-    "AssetFormatError", "AssetNotFoundError", "Camera", "DirectionalLight", "Features", "Frame", "FrameCheck", "InputError",
+    "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Features", "Frame", "FrameCheck", "InputError",
     "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "Scene", "SpotLight",
     "Texture", "check", "explain", "render",
 ]

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .brdf import BRDF
 from .lights import DIRECTIONAL, POINT, SPOT
 
 
@@ -34,22 +35,24 @@ class Features:
     pass_through: bool = True
     # depth and normal outputs
     aovs: bool = True
+    # the model of each BRDF term
+    brdf: BRDF = BRDF()
 
     @property
     def textures(self) -> bool:
         return self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture or self.normal_mapping
 
     @classmethod
-    def everything(cls, spp: int = 1, aovs: bool = True) -> "Features":
+    def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF()) -> "Features":
         """Every effect compiled in: the unspecialized kernel, the reference for specialization.
-        Sampling follows spp (pixel centres for 1), outputs follow aovs, as they are options."""
-        return cls(supersampling=spp > 1, aovs=aovs)
+        Sampling, outputs and BRDF follow the options."""
+        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf)
 
 
 @dataclass(frozen=True)
 class Decision:
     name: str
-    present: bool
+    present: object
     why: str
 
 
@@ -64,7 +67,7 @@ def _is_convex(prim) -> bool:
     return cached
 
 
-def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool) -> list[Decision]:
+def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF()) -> list[Decision]:
     """Every effect with whether the render simulates it and why, in the order explain prints."""
     prims = scene.primitives
     rows = gpu.material_rows
@@ -81,6 +84,8 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool) -> list[Decision]
     def add(name, present, why):
         decisions.append(Decision(name, bool(present), why))
 
+    decisions.append(Decision("brdf", brdf, f"{brdf.energy} scattering"))
+
     for name, label in (("point_lights", "point light"), ("directional_lights", "directional light"), ("spot_lights", "spot light")):
         kind = {"point_lights": POINT, "directional_lights": DIRECTIONAL, "spot_lights": SPOT}[name]
         add(name, kind in kinds, f"{count[kind]} {label}{'s' if count[kind] != 1 else ''}" if kind in kinds else f"no {label}s")
@@ -89,9 +94,10 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool) -> list[Decision]
         add("specular", False, "no lights: no reflection")
     else:
         diffuse = any(m.metallic < 1.0 or m.metallic_roughness_texture is not None for m in mats)
-        add("diffuse", diffuse, "Lambert diffuse" if diffuse else "no diffuse: every material is fully metallic")
+        add("diffuse", diffuse, f"{brdf.diffuse} diffuse" if diffuse else "no diffuse: every material is fully metallic")
         specular = any(m.specular > 0.0 or m.metallic > 0.0 for m in mats)
-        add("specular", specular, "Cook-Torrance specular (GGX, Smith/Schlick-GGX, Schlick Fresnel)" if specular
+        add("specular", specular, f"Cook-Torrance specular: {brdf.distribution} distribution, {brdf.geometry} "
+            f"geometry, {brdf.fresnel} Fresnel" if specular
             else "no specular lobe: every material has specular = 0 and metallic = 0")
     if not shadows:
         add("shadows", False, "no shadow rays: shadows=False")
@@ -121,9 +127,9 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool) -> list[Decision]
     return decisions
 
 
-def scene_features(scene, gpu, *, shadows: bool, spp: int, aovs: bool = True) -> Features:
+def scene_features(scene, gpu, *, shadows: bool, spp: int, aovs: bool = True, brdf: BRDF = BRDF()) -> Features:
     """The Features a scene needs under the given render options."""
-    return Features(**{d.name: d.present for d in decide(scene, gpu, shadows=shadows, spp=spp, aovs=aovs)})
+    return Features(**{d.name: d.present for d in decide(scene, gpu, shadows=shadows, spp=spp, aovs=aovs, brdf=brdf)})
 
 
 def describe(decisions: list[Decision]) -> str:

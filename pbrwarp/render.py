@@ -12,6 +12,7 @@ import numpy as np
 import warp as wp
 
 from . import validate
+from .brdf import BRDF
 from .camera import Camera
 from .errors import InputTypeError
 from .features import Features, decide, describe, scene_features
@@ -19,7 +20,7 @@ from .frame import Frame
 from .gpu_scene import upload
 from .scene import Scene
 from pbrwarp.kernels.camera import CameraData
-from pbrwarp.kernels.render import render_kernel
+from pbrwarp.kernels.render import load_for_cpu, render_kernel
 
 # Launches per thread, each a contiguous band of rows. In trials on 2 cores (the bench/kernels.py
 # scenes) 4 per thread scaled best: more bands add GIL-held Python per launch, fewer leave a
@@ -80,6 +81,7 @@ def render(
     progress: bool | None = None,
     aovs: bool = True,
     specialize: bool = True,
+    brdf: BRDF | None = None,
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
@@ -91,7 +93,8 @@ def render(
     (if tqdm is installed) for renders longer than about a second, False never. ``aovs=False``
     skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are then None).
     ``specialize=False`` runs the kernel with every effect compiled in instead of the one built
-    for this scene (same image, slower; for comparison). :func:`explain` says what is simulated.
+    for this scene (same image, slower; for comparison). ``brdf`` picks each BRDF term's model
+    (:class:`BRDF`; the default is the seeds' model). :func:`explain` says what is simulated.
     """
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
@@ -108,8 +111,10 @@ def render(
     elif not isinstance(camera, Camera):
         raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
 
+    brdf = _brdf(brdf)
     gpu = upload(scene)
-    features = scene_features(scene, gpu, shadows=shadows, spp=spp, aovs=aovs) if specialize else Features.everything(spp, aovs)
+    features = (scene_features(scene, gpu, shadows=shadows, spp=spp, aovs=aovs, brdf=brdf) if specialize
+                else Features.everything(spp, aovs, brdf))
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
@@ -130,7 +135,7 @@ def render(
     work = bands(width, height, LAUNCHES_PER_THREAD * workers)
     bar = _progress_bar(len(work), progress)
     # compile or load the kernel once, before many threads would all try at once
-    kernel.module.load(wp.get_device("cpu"))
+    load_for_cpu(kernel)
     try:
         if workers == 1 or len(work) == 1:
             for band in work:
@@ -153,10 +158,19 @@ def render(
     )
 
 
-def explain(scene: Scene, shadows: bool = True, spp: int = 1, aovs: bool = True, **_render_options) -> str:
+def _brdf(brdf) -> BRDF:
+    if brdf is None:
+        return BRDF()
+    if not isinstance(brdf, BRDF):
+        raise InputTypeError(f"brdf must be a pbrwarp.BRDF, got {type(brdf).__name__}")
+    return brdf
+
+
+def explain(scene: Scene, shadows: bool = True, spp: int = 1, aovs: bool = True, brdf: BRDF | None = None,
+            **_render_options) -> str:
     """Which effects :func:`render` with these options simulates for ``scene``, and why each
     absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow itself ...")."""
     if not isinstance(scene, Scene):
         raise InputTypeError(f"explain takes a pbrwarp.Scene, got {type(scene).__name__}")
     spp = validate.positive_int(spp, "spp")
-    return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs))
+    return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=_brdf(brdf)))

@@ -1,0 +1,46 @@
+"""Choosing the BRDF's model term by term: the rungs of the accuracy ladder."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .errors import InputError
+from pbrwarp.kernels.brdf import DIFFUSE_MODELS, DISTRIBUTIONS, FRESNEL_MODELS, GEOMETRY_MODELS
+
+ENERGY_MODELS = ("single",)
+
+
+@dataclass(frozen=True)
+class BRDF:
+    """Which model each BRDF term uses; each choice is compiled in, not branched on per pixel.
+
+    The default is the seeds' model, the common real-time choice (Karis 2013): Lambert diffuse,
+    GGX distribution, Smith with Schlick-GGX (k = (roughness + 1)^2 / 8), Schlick Fresnel,
+    single scattering.
+
+    - ``diffuse``: "lambert" | "burley" (Disney 2012)
+    - ``distribution``: "ggx" | "blinn_phong" (normalized, exponent 2/alpha^2 - 2)
+    - ``geometry``: "implicit" (G = n.l n.v) | "schlick_ggx" | "smith_separable" (Walter 2007)
+      | "smith_correlated" (Heitz 2014) | "smith_correlated_fast" (Hammon 2017)
+    - ``fresnel``: "none" (F = f0) | "schlick" | "spherical_gaussian" (Lagarde 2012) | "exact"
+      (dielectric Fresnel with the IOR f0 implies)
+    - ``energy``: "single" (multi-scatter compensation is not implemented yet)
+    """
+
+    diffuse: str = "lambert"
+    distribution: str = "ggx"
+    geometry: str = "schlick_ggx"
+    fresnel: str = "schlick"
+    energy: str = "single"
+
+    def __post_init__(self):
+        for name, allowed in (("diffuse", DIFFUSE_MODELS), ("distribution", DISTRIBUTIONS),
+                              ("geometry", GEOMETRY_MODELS), ("fresnel", FRESNEL_MODELS), ("energy", ENERGY_MODELS)):
+            value = getattr(self, name)
+            if value not in allowed:
+                hint = " (multi-scatter compensation is planned, not implemented yet)" if value == "multiscatter" else ""
+                raise InputError(f"BRDF {name} must be one of {', '.join(allowed)}, got {value!r}{hint}")
+
+    def describe(self) -> str:
+        return (f"{self.diffuse} diffuse, {self.distribution} distribution, {self.geometry} geometry, "
+                f"{self.fresnel} Fresnel, {self.energy} scattering")

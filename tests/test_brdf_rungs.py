@@ -1,0 +1,182 @@
+"""The BRDF ladder: every rung of every term against a float64 reference written from its paper,
+properties that each must have, and every combination rendering finite images."""
+
+import itertools
+
+import numpy as np
+import pytest
+import warp as wp
+
+import pbrwarp as pw
+from pbrwarp.kernels import brdf as kb
+
+from scenes import head_on_camera, render_checked
+
+N = 2048
+
+
+@wp.kernel(enable_backward=False)
+def eval_scalar_terms(nv: wp.array(dtype=float), nl: wp.array(dtype=float), lh: wp.array(dtype=float),
+                      nh: wp.array(dtype=float), r: wp.array(dtype=float), out: wp.array2d(dtype=float)):
+    i = wp.tid()
+    a = r[i] * r[i]
+    out[i, 0] = kb.Fd_Burley(nv[i], nl[i], lh[i], r[i])
+    out[i, 1] = kb.D_BlinnPhong(a, nh[i])
+    out[i, 2] = kb.V_SmithGGXSeparable(nv[i], nl[i], a)
+    out[i, 3] = kb.V_SmithGGXCorrelated(nv[i], nl[i], a)
+    out[i, 4] = kb.V_SmithGGXCorrelatedFast(nv[i], nl[i], a)
+    out[i, 5] = kb.V_Implicit(nv[i], nl[i], a)
+
+
+@wp.kernel(enable_backward=False)
+def eval_fresnel(f0: wp.array(dtype=wp.vec3), f90: wp.array(dtype=wp.vec3), vh: wp.array(dtype=float),
+                 out: wp.array2d(dtype=wp.vec3)):
+    i = wp.tid()
+    out[i, 0] = kb.F_None(f0[i], f90[i], vh[i])
+    out[i, 1] = kb.F_SphericalGaussian(f0[i], f90[i], vh[i])
+    out[i, 2] = kb.F_Exact(f0[i], f90[i], vh[i])
+    out[i, 3] = kb.F_Schlick(f0[i], f90[i], vh[i])
+
+
+def f32(x):
+    return np.asarray(x, np.float32).astype(np.float64)
+
+
+@pytest.fixture(scope="module")
+def scalars():
+    rng = np.random.default_rng(11)
+    x = {k: f32(rng.uniform(lo, 1.0, N)) for k, lo in (("nv", 0.05), ("nl", 0.05), ("lh", 0.05), ("nh", 0.5), ("r", 0.2))}
+    out = wp.zeros((N, 6), dtype=float)
+    wp.launch(eval_scalar_terms, dim=N, inputs=[wp.array(x[k].astype(np.float32)) for k in ("nv", "nl", "lh", "nh", "r")] + [out])
+    return x, out.numpy().astype(np.float64)
+
+
+def rel(got, want):
+    return np.max(np.abs(got - want) / np.abs(want))
+
+
+def test_burley_diffuse(scalars):
+    x, out = scalars
+    f90 = 0.5 + 2 * x["r"] * x["lh"] ** 2
+    want = (1 + (f90 - 1) * (1 - x["nl"]) ** 5) * (1 + (f90 - 1) * (1 - x["nv"]) ** 5) / np.pi
+    assert rel(out[:, 0], want) <= 1e-5
+
+
+def test_blinn_phong_ndf(scalars):
+    x, out = scalars
+    power = 2 / x["r"] ** 4 - 2
+    want = (power + 2) / (2 * np.pi) * x["nh"] ** power
+    keep = want > 1e-20
+    # (n.h)^p with p up to ~600 magnifies float32 rounding of n.h by p
+    assert rel(out[keep, 1], want[keep]) <= 1e-5 * 600
+
+
+def smith_lambda(cos, alpha):
+    """Heitz 2014, GGX: Lambda = (-1 + sqrt(1 + alpha^2 tan^2)) / 2."""
+    tan2 = (1 - cos**2) / cos**2
+    return (-1 + np.sqrt(1 + alpha**2 * tan2)) / 2
+
+
+def test_smith_separable_and_correlated_visibility(scalars):
+    x, out = scalars
+    a = x["r"] ** 2
+    lv, ll = smith_lambda(x["nv"], a), smith_lambda(x["nl"], a)
+    denominator = 4 * x["nv"] * x["nl"]
+    assert rel(out[:, 2], 1 / ((1 + lv) * (1 + ll)) / denominator) <= 1e-5
+    assert rel(out[:, 3], 1 / (1 + lv + ll) / denominator) <= 1e-5
+    np.testing.assert_allclose(out[:, 5], 0.25)
+
+
+def test_fast_correlated_visibility_follows_its_formula_and_approximates_heitz(scalars):
+    x, out = scalars
+    a = x["r"] ** 2
+    want = 0.5 / (x["nl"] * (x["nv"] * (1 - a) + a) + x["nv"] * (x["nl"] * (1 - a) + a))
+    assert rel(out[:, 4], want) <= 1e-5
+    # the linear fit x (1 - a) + a bounds sqrt(x^2 (1 - a^2) + a^2) from above (their squares
+    # differ by 2a(1 - a)x(1 - x) >= 0), so the fast term never exceeds the exact one
+    assert np.all(out[:, 4] <= out[:, 3] * (1 + 1e-6))
+
+
+def snell_fresnel(cos_i, eta):
+    """Unpolarized reflectance from the s and p amplitudes (Fresnel 1823) via Snell's law."""
+    sin_t = np.sqrt(np.maximum(0, 1 - cos_i**2)) / eta
+    cos_t = np.sqrt(np.maximum(0, 1 - sin_t**2))
+    rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return 0.5 * (rs**2 + rp**2)
+
+
+@pytest.fixture(scope="module")
+def fresnel():
+    rng = np.random.default_rng(12)
+    f0 = f32(rng.uniform(0.01, 0.95, (N, 3)))
+    f90 = f32(rng.uniform(0.2, 1.0, (N, 1)) * np.ones((1, 3)))
+    vh = f32(rng.uniform(0.01, 1.0, N))
+    out = wp.zeros((N, 4), dtype=wp.vec3)
+    wp.launch(eval_fresnel, dim=N, inputs=[wp.array(f0.astype(np.float32), dtype=wp.vec3), wp.array(f90.astype(np.float32), dtype=wp.vec3),
+                                           wp.array(vh.astype(np.float32)), out])
+    return f0, f90, vh, out.numpy().astype(np.float64)
+
+
+def test_fresnel_none_and_spherical_gaussian(fresnel):
+    f0, f90, vh, out = fresnel
+    np.testing.assert_array_equal(out[:, 0], f0)
+    want = f0 + (f90 - f0) * 2.0 ** ((-5.55473 * vh - 6.98316) * vh)[:, None]
+    assert rel(out[:, 1], want) <= 1e-5
+    # the fit follows Schlick's (1 - v.h)^5 closely
+    assert np.max(np.abs(out[:, 1] - out[:, 3])) <= 0.01
+
+
+def test_exact_fresnel_is_the_dielectric_reflectance_of_the_implied_ior(fresnel):
+    f0, f90, vh, out = fresnel
+    ratio = np.clip(f0 / f90, 0, 0.9999)
+    eta = (1 + np.sqrt(ratio)) / (1 - np.sqrt(ratio))
+    want = f90 * snell_fresnel(vh[:, None], eta)
+    assert rel(out[:, 2], want) <= 2e-5
+    # at normal incidence it is f0 (up to the f0/f90 clamp), at grazing f90
+    np.testing.assert_allclose(f90 * snell_fresnel(np.ones((1, 1)), eta), np.minimum(f0, 0.9999 * f90), rtol=1e-9)
+
+
+def test_blinn_phong_ndf_is_normalized():
+    """Projected-area normalization: the integral of D(h) n.h over the hemisphere is 1."""
+    theta = np.linspace(0, np.pi / 2, 20001)
+    for roughness in (0.3, 0.5, 0.8):
+        nh = np.cos(theta).astype(np.float32)
+        out = wp.zeros((len(theta), 6), dtype=float)
+        ones = wp.array(np.ones(len(theta), np.float32))
+        wp.launch(eval_scalar_terms, dim=len(theta), inputs=[ones, ones, ones, wp.array(nh), wp.array(np.full(len(theta), roughness, np.float32)), out])
+        d = out.numpy()[:, 1].astype(np.float64)
+        integral = np.trapezoid(d * np.cos(theta) * 2 * np.pi * np.sin(theta), theta)
+        assert abs(integral - 1) <= 1e-3
+
+
+def test_unknown_rungs_are_rejected():
+    with pytest.raises(pw.InputError, match="geometry"):
+        pw.BRDF(geometry="smith_magic")
+    with pytest.raises(pw.InputError, match="planned"):
+        pw.BRDF(energy="multiscatter")
+    with pytest.raises(pw.InputTypeError, match="BRDF"):
+        pw.render(pw.Scene(), head_on_camera(), brdf="ggx")
+
+
+@pytest.mark.parametrize("rungs", list(itertools.product(("lambert", "burley"), ("ggx", "blinn_phong"),
+                                                         ("implicit", "schlick_ggx", "smith_separable", "smith_correlated",
+                                                          "smith_correlated_fast"), ("none", "schlick", "spherical_gaussian", "exact")))[::5])
+def test_every_rung_combination_renders_finite(rungs):
+    import trimesh
+
+    diffuse, distribution, geometry, fresnel_model = rungs
+    scene = pw.Scene()
+    for i, (m, r) in enumerate(((0.0, 0.0), (0.5, 0.3), (1.0, 0.7))):
+        scene.add_mesh(trimesh.creation.icosphere(subdivisions=2), pw.Material(base_color=(0.9, 0.6, 0.2), metallic=m, roughness=r),
+                       transform=np.diag([1.0, 1.0, 1.0, 1.0]) + np.pad(np.array([[0, 0, 0, 2.5 * (i - 1)]]), ((0, 3), (0, 0))))
+    scene.add_light(pw.PointLight(position=(2, 3, 4), intensity=40.0))
+    brdf = pw.BRDF(diffuse=diffuse, distribution=distribution, geometry=geometry, fresnel=fresnel_model)
+    frame = render_checked(scene, pw.Camera.look_at(eye=(0, 0, 8), target=(0, 0, 0)), size=(48, 24), brdf=brdf)
+    assert frame.rgb.max() > 0
+    text = pw.explain(scene, brdf=brdf)
+    assert f"{diffuse} diffuse" in text and f"{geometry} geometry" in text and f"{fresnel_model} Fresnel" in text
+
+
+def test_default_brdf_is_the_seeds_model():
+    assert pw.BRDF() == pw.BRDF(diffuse="lambert", distribution="ggx", geometry="schlick_ggx", fresnel="schlick", energy="single")
