@@ -44,3 +44,33 @@ class BRDF:
     def describe(self) -> str:
         return (f"{self.diffuse} diffuse, {self.distribution} distribution, {self.geometry} geometry, "
                 f"{self.fresnel} Fresnel, {self.energy} scattering")
+
+
+# Quality presets: the rungs each selects. "balanced" is the default because it is the model the
+# seeds teach and real-time engines ship (Karis 2013): GGX with Schlick's Fresnel and the
+# Schlick-GGX geometry term, whose cost is a few multiply-adds over the cheapest rungs.
+PRESETS = {
+    # the cheapest rung of every term: Blinn-Phong NDF, G = n.l n.v, exp2 Fresnel
+    "fast": BRDF(distribution="blinn_phong", geometry="implicit", fresnel="spherical_gaussian"),
+    # the seeds' model
+    "balanced": BRDF(),
+    # the exact Smith term (Heitz 2014) and Disney diffuse, with Schlick's Fresnel
+    "accurate": BRDF(diffuse="burley", geometry="smith_correlated"),
+    # the most exact rung of every term implemented (bench/accuracy.py renders it at 256 spp)
+    "reference": BRDF(diffuse="burley", geometry="smith_correlated", fresnel="exact"),
+}
+
+
+def brdf_for_quality(quality: str | None, brdf: BRDF | None) -> BRDF:
+    """The BRDF a render uses: ``brdf`` when given (per-term overrides win), else the preset."""
+    if brdf is not None:
+        if not isinstance(brdf, BRDF):
+            from .errors import InputTypeError
+
+            raise InputTypeError(f"brdf must be a pbrwarp.BRDF, got {type(brdf).__name__}")
+        return brdf
+    if quality is None:
+        return PRESETS["balanced"]
+    if quality not in PRESETS:
+        raise InputError(f"quality must be one of {', '.join(PRESETS)}, got {quality!r}")
+    return PRESETS[quality]

@@ -12,7 +12,7 @@ import numpy as np
 import warp as wp
 
 from . import validate
-from .brdf import BRDF
+from .brdf import BRDF, brdf_for_quality
 from .camera import Camera
 from .errors import InputTypeError
 from .features import Features, decide, describe, scene_features
@@ -81,6 +81,7 @@ def render(
     progress: bool | None = None,
     aovs: bool = True,
     specialize: bool = True,
+    quality: str | None = None,
     brdf: BRDF | None = None,
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
@@ -93,8 +94,10 @@ def render(
     (if tqdm is installed) for renders longer than about a second, False never. ``aovs=False``
     skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are then None).
     ``specialize=False`` runs the kernel with every effect compiled in instead of the one built
-    for this scene (same image, slower; for comparison). ``brdf`` picks each BRDF term's model
-    (:class:`BRDF`; the default is the seeds' model). :func:`explain` says what is simulated.
+    for this scene (same image, slower; for comparison). ``quality`` ("fast", "balanced" (the
+    default), "accurate", "reference") picks a preset of BRDF rungs (pbrwarp.brdf.PRESETS);
+    ``brdf`` (:class:`BRDF`) picks each term's model and wins over ``quality``.
+    :func:`explain` says what is simulated.
     """
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
@@ -111,7 +114,7 @@ def render(
     elif not isinstance(camera, Camera):
         raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
 
-    brdf = _brdf(brdf)
+    brdf = brdf_for_quality(quality, brdf)
     gpu = upload(scene)
     features = (scene_features(scene, gpu, shadows=shadows, spp=spp, aovs=aovs, brdf=brdf) if specialize
                 else Features.everything(spp, aovs, brdf))
@@ -158,19 +161,11 @@ def render(
     )
 
 
-def _brdf(brdf) -> BRDF:
-    if brdf is None:
-        return BRDF()
-    if not isinstance(brdf, BRDF):
-        raise InputTypeError(f"brdf must be a pbrwarp.BRDF, got {type(brdf).__name__}")
-    return brdf
-
-
-def explain(scene: Scene, shadows: bool = True, spp: int = 1, aovs: bool = True, brdf: BRDF | None = None,
-            **_render_options) -> str:
+def explain(scene: Scene, shadows: bool = True, spp: int = 1, aovs: bool = True, quality: str | None = None,
+            brdf: BRDF | None = None, **_render_options) -> str:
     """Which effects :func:`render` with these options simulates for ``scene``, and why each
     absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow itself ...")."""
     if not isinstance(scene, Scene):
         raise InputTypeError(f"explain takes a pbrwarp.Scene, got {type(scene).__name__}")
     spp = validate.positive_int(spp, "spp")
-    return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=_brdf(brdf)))
+    return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf)))

@@ -180,3 +180,22 @@ def test_every_rung_combination_renders_finite(rungs):
 
 def test_default_brdf_is_the_seeds_model():
     assert pw.BRDF() == pw.BRDF(diffuse="lambert", distribution="ggx", geometry="schlick_ggx", fresnel="schlick", energy="single")
+
+
+def test_presets_select_the_documented_rungs():
+    from pbrwarp.brdf import PRESETS
+
+    assert PRESETS["balanced"] == pw.BRDF()
+    assert PRESETS["fast"] == pw.BRDF(distribution="blinn_phong", geometry="implicit", fresnel="spherical_gaussian")
+    assert PRESETS["accurate"] == pw.BRDF(diffuse="burley", geometry="smith_correlated")
+    assert PRESETS["reference"] == pw.BRDF(diffuse="burley", geometry="smith_correlated", fresnel="exact")
+    import trimesh
+
+    scene = pw.Scene()
+    scene.add_mesh(trimesh.creation.icosphere(subdivisions=1))
+    scene.add_light(pw.PointLight(position=(1, 2, 3), intensity=5.0))
+    assert "implicit geometry" in pw.explain(scene, quality="fast")
+    assert "exact Fresnel" in pw.explain(scene, quality="reference")
+    assert "exact Fresnel" in pw.explain(scene, quality="fast", brdf=pw.BRDF(fresnel="exact"))  # overrides win
+    with pytest.raises(pw.InputError, match="quality"):
+        pw.render(scene, quality="ultra")
