@@ -1,7 +1,11 @@
 """Stand-alone pipeline stages (primary rays, closest hit, any hit) for benchmarks and for
 comparing ray throughput with other ray casters on exactly the same rays."""
 
+import functools
+
 import warp as wp
+
+from .brdf import brdf_for
 
 from .camera import CameraData, camera_ray_direction
 from .robust import RAY_FAR, offset_ray_origin, triangle_hit_error, safe_normalize
@@ -55,3 +59,37 @@ def any_hits(mesh: wp.uint64, origins: wp.array(dtype=wp.vec3), to_light: wp.vec
         out_hit[i] = 0
         return
     out_hit[i] = wp.where(wp.mesh_query_ray_anyhit(mesh, o, to_light, RAY_FAR), 1, 0)
+
+
+@functools.cache
+def brdf_throughput_kernel(diffuse: str, distribution: str, geometry: str, fresnel: str):
+    """A kernel evaluating the BRDF ``evals`` times per thread on inputs that vary with every call
+    (the sum is written so that nothing is optimized away): time per evaluation of a rung."""
+    brdf = brdf_for(True, True, diffuse, distribution, geometry, fresnel)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def evaluate(evals: int, out: wp.array(dtype=wp.vec3)):
+        i = wp.tid()
+        state = wp.rand_init(1234, i)
+        total = wp.vec3(0.0)
+        n = wp.vec3(0.0, 0.0, 1.0)
+        for _ in range(evals):
+            v = wp.normalize(wp.vec3(wp.randf(state) - 0.5, wp.randf(state) - 0.5, wp.randf(state) + 0.05))
+            l = wp.normalize(wp.vec3(wp.randf(state) - 0.5, wp.randf(state) - 0.5, wp.randf(state) + 0.05))
+            total = total + brdf(n, v, l, wp.vec3(0.8, 0.6, 0.4), wp.randf(state), wp.randf(state), 1.0)
+        out[i] = total
+
+    return evaluate
+
+
+@wp.kernel(enable_backward=False)
+def random_inputs_only(evals: int, out: wp.array(dtype=wp.vec3)):
+    """The input generation of brdf_throughput_kernel alone, to subtract its cost."""
+    i = wp.tid()
+    state = wp.rand_init(1234, i)
+    total = wp.vec3(0.0)
+    for _ in range(evals):
+        v = wp.normalize(wp.vec3(wp.randf(state) - 0.5, wp.randf(state) - 0.5, wp.randf(state) + 0.05))
+        l = wp.normalize(wp.vec3(wp.randf(state) - 0.5, wp.randf(state) - 0.5, wp.randf(state) + 0.05))
+        total = total + v + l + wp.vec3(wp.randf(state), wp.randf(state), 0.0)
+    out[i] = total

@@ -1,0 +1,230 @@
+"""What accuracy costs in time: every BRDF rung, the presets, sample counts and shadows, measured
+against a reference for error and timed, side by side.
+
+    python bench/accuracy.py [--repeats 5] [--size 256x192]
+
+- BRDF rows swap one term of the default (the seeds' model) for another rung, or use a preset.
+  Their error is against the reference BRDF (pbrwarp.brdf.PRESETS["reference"]) rendered with
+  the same 4 stratified samples per pixel, so it is the BRDF's error alone.
+- Sampling rows render the default BRDF at 1..64 spp against the same BRDF at 256 spp.
+- The shadow row turns shadow rays off, against shadow rays on.
+Error: relative RMSE of linear radiance over the covered pixels (per pixel, relative to
+reference^2 + 0.01, as Rousselle et al. 2011; radiance clipped at 64), mean over the scenes,
+and mean
+NVIDIA FLIP of the ACES-tone-mapped images when flip-evaluator is installed. Time: whole frames
+on every core at spp 1 (median of --repeats after a warm-up, summed over the scenes), and ns per
+BRDF evaluation (a kernel of 1e7 evaluations on one thread, minus the cost of its inputs).
+Writes bench/results/accuracy.{md,json,png}.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import trimesh
+import warp as wp
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import RESULTS, median_time, write_results  # noqa: E402
+
+import pbrwarp as pw  # noqa: E402
+from pbrwarp import meshes  # noqa: E402
+from pbrwarp.brdf import PRESETS  # noqa: E402
+from pbrwarp.kernels import stages  # noqa: E402
+
+ASSETS = Path(__file__).resolve().parents[1].parent / "shared" / "assets"
+DEFAULT = pw.BRDF()
+REFERENCE = PRESETS["reference"]
+FAMILY_RUNGS = {
+    "diffuse": ["lambert", "burley"],
+    "distribution": ["ggx", "blinn_phong"],
+    "geometry": ["implicit", "schlick_ggx", "smith_separable", "smith_correlated", "smith_correlated_fast"],
+    "fresnel": ["none", "schlick", "spherical_gaussian", "exact"],
+}
+
+
+def report_scenes():
+    """The four scenes of the report: (name, scene, camera)."""
+    grid = meshes.sphere_grid(base_color=(0.8, 0.2, 0.1), subdivisions=3)
+    for direction in ((-0.5, -0.5, -1.0), (0.6, -0.3, -1.0), (0.0, 0.7, -1.0)):
+        grid.add_light(pw.DirectionalLight(direction=direction, intensity=2.0))
+    grazing = pw.Scene()
+    grazing.add_mesh(trimesh.creation.box(extents=(40.0, 0.1, 40.0)), pw.Material(base_color=(0.3, 0.3, 0.35), roughness=0.25))
+    grazing.add_light(pw.DirectionalLight(direction=(0.0, -0.2, 1.0), intensity=5.0))
+    grazing.add_light(pw.PointLight(position=(3.0, 1.0, -8.0), intensity=60.0))
+    textured_path = ASSETS / "gltf/NormalTangentTest/glTF-Binary/NormalTangentTest.glb"
+    if textured_path.exists():
+        textured = pw.Scene.load(textured_path)
+    else:
+        textured = pw.Scene()
+        textured.add_mesh(meshes.normal_mapped_torus())
+    textured.add_light(pw.DirectionalLight(direction=(-0.3, -0.4, -1.0), intensity=3.0))
+    textured.add_light(pw.PointLight(position=tuple(textured.bounds()[1] * 2.0 + 1.0), intensity=20.0))
+    white = pw.Scene()
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    for i, (metallic, roughness) in enumerate(((1.0, 0.6), (1.0, 1.0), (0.0, 0.6), (0.0, 1.0))):
+        white.add_mesh(sphere, pw.Material(base_color=(1.0, 1.0, 1.0), metallic=metallic, roughness=roughness),
+                       transform=trimesh.transformations.translation_matrix((2.4 * i - 3.6, 0.0, 0.0)))
+    white.add_light(pw.DirectionalLight(direction=(0.0, 0.0, -1.0), intensity=3.0))
+    white.add_light(pw.PointLight(position=(0.0, 4.0, 2.0), intensity=40.0))
+    return [
+        ("sphere grid", grid, pw.Camera.frame(grid, direction=(0, 0, 1))),
+        ("grazing plane", grazing, pw.Camera.look_at(eye=(0.0, 0.6, 10.0), target=(0.0, 0.0, -10.0), fov_y=40.0)),
+        ("textured glTF", textured, pw.Camera.frame(textured, direction=(0.2, 0.2, 1.0))),
+        ("white spheres", white, pw.Camera.frame(white, direction=(0, 0, 1))),
+    ]
+
+
+# Radiance above this (6 EV over display white) is clipped before comparing: a sub-pixel
+# highlight of 1e4 nits caught by one sample shows as white whatever its value, but would
+# otherwise dominate the mean.
+ERROR_RADIANCE_CLIP = 64.0
+
+
+def rel_rmse(test, ref, covered):
+    """sqrt(mean((x - ref)^2 / (ref^2 + 0.01))) over the covered pixels (the relative MSE of
+    Rousselle et al. 2011) of radiance clipped at ERROR_RADIANCE_CLIP."""
+    t = np.minimum(test[covered].astype(np.float64), ERROR_RADIANCE_CLIP)
+    r = np.minimum(ref[covered].astype(np.float64), ERROR_RADIANCE_CLIP)
+    return float(np.sqrt(np.mean((t - r) ** 2 / (r**2 + 0.01))))
+
+
+def flip(test_frame, ref_frame):
+    try:
+        import flip_evaluator
+    except ImportError:
+        return None
+    ref = ref_frame.to_srgb8().astype(np.float32) / 255.0
+    test = test_frame.to_srgb8().astype(np.float32) / 255.0
+    return float(flip_evaluator.evaluate(ref, test, "LDR")[1])
+
+
+def brdf_ns_per_eval(brdf, repeats):
+    threads, evals = 1000, 10_000
+    out = wp.empty(threads, dtype=wp.vec3, device="cpu")
+    kernel = stages.brdf_throughput_kernel(brdf.diffuse, brdf.distribution, brdf.geometry, brdf.fresnel)
+    full = median_time(lambda: wp.launch(kernel, threads, inputs=[evals, out], device="cpu"), repeats)
+    inputs = median_time(lambda: wp.launch(stages.random_inputs_only, threads, inputs=[evals, out], device="cpu"), repeats)
+    return 1e9 * (full - inputs) / (threads * evals)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--size", default="256x192")
+    args = ap.parse_args(argv)
+    width, height = (int(x) for x in args.size.split("x"))
+    wp.config.log_level = wp.LOG_WARNING
+    scenes = report_scenes()
+
+    def render(scene, cam, **kw):
+        return pw.render(scene, cam, width=width, height=height, progress=False, **kw)
+
+    def frame_ms(**kw):
+        return 1e3 * sum(median_time(lambda: render(s, c, **kw), args.repeats) for _, s, c in scenes)
+
+    rows = []
+
+    def add(family, label, errors, flips, ms, ns=None):
+        rows.append({"family": family, "rung": label, "rel_rmse": float(np.mean(errors)), "per_scene": errors,
+                     "flip": float(np.mean(flips)) if all(f is not None for f in flips) else None, "ms": ms, "ns_per_eval": ns})
+        print(rows[-1], file=sys.stderr)
+
+    t0 = time.perf_counter()
+    # BRDF rungs and presets, against the reference BRDF at the same samples
+    references = [render(s, c, spp=4, brdf=REFERENCE) for _, s, c in scenes]
+    candidates = [("preset", f"quality={name}", brdf) for name, brdf in PRESETS.items()]
+    for family, rungs in FAMILY_RUNGS.items():
+        for rung in rungs:
+            brdf = pw.BRDF(**{**DEFAULT.__dict__, family: rung})
+            if brdf != DEFAULT:
+                candidates.append((family, f"{family}={rung}", brdf))
+    for family, label, brdf in candidates:
+        frames = [render(s, c, spp=4, brdf=brdf) for _, s, c in scenes]
+        errors = [rel_rmse(f.rgb, r.rgb, r.alpha > 0) for f, r in zip(frames, references)]
+        add(family, label, errors, [flip(f, r) for f, r in zip(frames, references)], frame_ms(brdf=brdf),
+            brdf_ns_per_eval(brdf, args.repeats))
+    # sample counts and shadows with the default BRDF
+    converged = [render(s, c, spp=256) for _, s, c in scenes]
+    for spp in (1, 4, 16, 64):
+        frames = [render(s, c, spp=spp) for _, s, c in scenes]
+        add("sampling", f"spp={spp}", [rel_rmse(f.rgb, r.rgb, r.alpha > 0) for f, r in zip(frames, converged)],
+            [flip(f, r) for f, r in zip(frames, converged)], frame_ms(spp=spp))
+    with_shadows = [render(s, c) for _, s, c in scenes]
+    frames = [render(s, c, shadows=False) for _, s, c in scenes]
+    add("shadows", "shadows=False", [rel_rmse(f.rgb, r.rgb, r.alpha > 0) for f, r in zip(frames, with_shadows)],
+        [flip(f, r) for f, r in zip(frames, with_shadows)], frame_ms(shadows=False))
+    rows.append({"family": "shadows", "rung": "shadows=True (ray traced)", "rel_rmse": 0.0, "per_scene": [0.0] * len(scenes),
+                 "flip": 0.0, "ms": frame_ms(), "ns_per_eval": None})
+    print(f"done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+
+    names = [n for n, _, _ in scenes]
+    header = (f"| family | rung | ms / {len(scenes)} frames | ns / BRDF eval | rel. RMSE (mean) | FLIP (mean) | "
+              + " | ".join(f"rel. RMSE {n}" for n in names) + " |")
+    lines = [header, "|" + "---|" * (6 + len(names))]
+    for r in rows:
+        ns = f"{r['ns_per_eval']:.1f}" if r["ns_per_eval"] is not None else ""
+        fl = f"{r['flip']:.4f}" if r["flip"] is not None else "n/a"
+        lines.append(f"| {r['family']} | {r['rung']} | {r['ms']:.0f} | {ns} | {r['rel_rmse']:.4f} | {fl} | "
+                     + " | ".join(f"{e:.4f}" for e in r["per_scene"]) + " |")
+    lines += ["", f"{width}x{height} frames on every core. BRDF and preset rows: error against "
+              f"quality=reference ({REFERENCE.describe()}) at the same 4 spp; sampling rows: against 256 spp; "
+              "shadows=False: against ray-traced shadows. Times: spp 1, medians, summed over the four scenes.",
+              "", "![error vs time](accuracy.png)"]
+    command = "python bench/accuracy.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + \
+        (f" --size {args.size}" if args.size != "256x192" else "")
+    write_results("accuracy", command, {"rows": rows, "scenes": names}, "\n".join(lines) + "\n")
+    plot(rows, RESULTS / "accuracy.png")
+
+
+def plot(rows, path):
+    """Error vs cost, log axes, Pareto fronts dashed: BRDF rungs against ns per evaluation (their
+    frame times differ by less than the timing noise), sampling and shadows against ms per frame."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is not installed (pip install -e '.[bench]'): no plot", file=sys.stderr)
+        return
+    colours = {"preset": "black", "diffuse": "tab:green", "distribution": "tab:purple", "geometry": "tab:blue",
+               "fresnel": "tab:orange", "sampling": "tab:red", "shadows": "tab:brown"}
+    floor = 1e-4  # the reference itself (error 0) sits on the floor of the log axis
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5), dpi=110)
+    panels = ((axes[0], [r for r in rows if r["ns_per_eval"] is not None], "ns_per_eval",
+               "BRDF cost (ns per evaluation, one thread)", "BRDF rungs and presets (4 spp)"),
+              (axes[1], [r for r in rows if r["ns_per_eval"] is None], "ms",
+               "time for the four report frames (ms, 2 cores)", "sample counts and shadows"))
+    for ax, subset, key, xlabel, title in panels:
+        points = [(max(r[key], 0.1), max(r["rel_rmse"], floor), r) for r in subset]
+        for x, err, r in points:
+            ax.scatter(x, err, color=colours[r["family"]], s=28, zorder=3)
+            ax.annotate(r["rung"], (x, err), fontsize=6.5, xytext=(3, 2), textcoords="offset points")
+        front, best = [], float("inf")
+        for x, err, _ in sorted(points, key=lambda p: (p[0], p[1])):
+            if err < best:
+                front.append((x, err))
+                best = err
+        ax.plot(*zip(*front), color="grey", lw=1.0, ls="--", zorder=2, label="Pareto front")
+        for family in dict.fromkeys(r["family"] for r in subset):
+            ax.scatter([], [], color=colours[family], label=family)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("relative RMSE vs reference (mean over scenes)")
+        ax.set_title(title)
+        ax.legend(fontsize=7, loc="best")
+        ax.grid(True, which="both", alpha=0.3)
+    fig.suptitle("pbrwarp: what accuracy costs in time")
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+if __name__ == "__main__":
+    main()
