@@ -67,6 +67,10 @@ def _is_convex(prim) -> bool:
     return cached
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" + ("" if n == 1 else "es" if noun.endswith("sh") else "s")
+
+
 def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF()) -> list[Decision]:
     """Every effect with whether the render simulates it and why, in the order explain prints."""
     prims = scene.primitives
@@ -84,7 +88,7 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF
     def add(name, present, why):
         decisions.append(Decision(name, bool(present), why))
 
-    decisions.append(Decision("brdf", brdf, f"{brdf.energy} scattering"))
+    decisions.append(Decision("brdf", brdf, f"BRDF energy: {brdf.energy} scattering"))
 
     for name, label in (("point_lights", "point light"), ("directional_lights", "directional light"), ("spot_lights", "spot light")):
         kind = {"point_lights": POINT, "directional_lights": DIRECTIONAL, "spot_lights": SPOT}[name]
@@ -116,12 +120,12 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF
     present, why = slot("normal_texture", "normal map")
     add("normal_mapping", present, why + ("" if present else ": no tangent frames"))
     emitters = sum(1 for m in mats if max(m.emissive) > 0.0)
-    add("emission", emitters, f"emission: {emitters} materials" if emitters else "no emission: every emissive factor is 0")
+    add("emission", emitters, f"emission: {_count(emitters, 'material')}" if emitters else "no emission: every emissive factor is 0")
     coloured = sum(1 for p in prims if p.colors is not None and not np.all(p.colors == 1.0))
-    add("vertex_colors", coloured, f"vertex colours: {coloured} meshes" if coloured else "no vertex colours")
+    add("vertex_colors", coloured, f"vertex colours: {_count(coloured, 'mesh')}" if coloured else "no vertex colours")
     add("supersampling", spp > 1, f"{spp} stratified samples per pixel" if spp > 1 else "one ray through each pixel centre (spp = 1)")
     single = sum(1 for m in mats if not m.double_sided or m.alpha_mode == "MASK")
-    add("pass_through", single, f"camera rays pass single-sided back faces and alpha cut-outs ({single} materials)"
+    add("pass_through", single, f"camera rays pass single-sided back faces and alpha cut-outs ({_count(single, 'material')})"
         if single else "no pass-through: every material is double-sided and opaque")
     add("aovs", aovs, "depth and normal outputs" if aovs else "no depth and normal outputs: aovs=False")
     return decisions
