@@ -14,7 +14,8 @@ and mean
 NVIDIA FLIP of the ACES-tone-mapped images when flip-evaluator is installed. Time: whole frames
 on every core at spp 1 (median of --repeats after a warm-up, summed over the scenes), and ns per
 BRDF evaluation (a kernel of 1e7 evaluations on one thread, minus the cost of its inputs).
-Writes bench/results/accuracy.{md,json,png}.
+Writes bench/results/accuracy.{md,json,png} and accuracy_differences.png (a contact sheet of
+4x-amplified differences to the reference, one row per rung).
 """
 
 from __future__ import annotations
@@ -144,8 +145,10 @@ def main(argv=None):
             brdf = pw.BRDF(**{**DEFAULT.__dict__, family: rung})
             if brdf != DEFAULT:
                 candidates.append((family, f"{family}={rung}", brdf))
+    sheet = []
     for family, label, brdf in candidates:
         frames = [render(s, c, spp=4, brdf=brdf) for _, s, c in scenes]
+        sheet.append((label, [difference_image(f, r) for f, r in zip(frames, references)]))
         errors = [rel_rmse(f.rgb, r.rgb, r.alpha > 0) for f, r in zip(frames, references)]
         add(family, label, errors, [flip(f, r) for f, r in zip(frames, references)], frame_ms(brdf=brdf),
             brdf_ns_per_eval(brdf, args.repeats))
@@ -175,11 +178,37 @@ def main(argv=None):
     lines += ["", f"{width}x{height} frames on every core. BRDF and preset rows: error against "
               f"quality=reference ({REFERENCE.describe()}) at the same 4 spp; sampling rows: against 256 spp; "
               "shadows=False: against ray-traced shadows. Times: spp 1, medians, summed over the four scenes.",
-              "", "![error vs time](accuracy.png)"]
+              "", "![error vs time](accuracy.png)", "",
+              "Differences to the reference (tone-mapped, amplified 4x), one row per rung:", "",
+              "![differences](accuracy_differences.png)"]
     command = "python bench/accuracy.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + \
         (f" --size {args.size}" if args.size != "256x192" else "")
     write_results("accuracy", command, {"rows": rows, "scenes": names}, "\n".join(lines) + "\n")
     plot(rows, RESULTS / "accuracy.png")
+    contact_sheet(sheet, [n for n, _, _ in scenes], RESULTS / "accuracy_differences.png")
+
+
+def difference_image(frame, reference):
+    """|tone-mapped test - tone-mapped reference|, amplified 4x, as uint8 RGB."""
+    d = np.abs(frame.to_srgb8().astype(np.int16) - reference.to_srgb8().astype(np.int16)) * 4
+    return np.clip(d, 0, 255).astype(np.uint8)
+
+
+def contact_sheet(sheet, scene_names, path):
+    """One row per rung, one column per scene, of 4x-amplified differences to the reference."""
+    from PIL import Image, ImageDraw
+
+    h, w = sheet[0][1][0].shape[:2]
+    label_w = 190
+    out = Image.new("RGB", (label_w + w * len(scene_names), 16 + h * len(sheet)), (20, 20, 20))
+    draw = ImageDraw.Draw(out)
+    for j, name in enumerate(scene_names):
+        draw.text((label_w + j * w + 4, 2), name, fill=(230, 230, 230))
+    for i, (label, images) in enumerate(sheet):
+        draw.text((4, 16 + i * h + h // 2 - 6), label, fill=(230, 230, 230))
+        for j, image in enumerate(images):
+            out.paste(Image.fromarray(image), (label_w + j * w, 16 + i * h))
+    out.save(path)
 
 
 def plot(rows, path):
