@@ -46,6 +46,7 @@ FAMILY_RUNGS = {
     "distribution": ["ggx", "blinn_phong"],
     "geometry": ["implicit", "schlick_ggx", "smith_separable", "smith_correlated", "smith_correlated_fast"],
     "fresnel": ["none", "schlick", "spherical_gaussian", "exact"],
+    "energy": ["single", "multiscatter"],
 }
 
 
@@ -223,7 +224,7 @@ def plot(rows, path):
         print("matplotlib is not installed (pip install -e '.[bench]'): no plot", file=sys.stderr)
         return
     colours = {"preset": "black", "diffuse": "tab:green", "distribution": "tab:purple", "geometry": "tab:blue",
-               "fresnel": "tab:orange", "sampling": "tab:red", "shadows": "tab:brown"}
+               "fresnel": "tab:orange", "energy": "tab:olive", "sampling": "tab:red", "shadows": "tab:brown"}
     floor = 1e-4  # the reference itself (error 0) sits on the floor of the log axis
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), dpi=110)
     panels = ((axes[0], [r for r in rows if r["ns_per_eval"] is not None], "ns_per_eval",

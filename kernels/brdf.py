@@ -174,13 +174,20 @@ _VISIBILITY = {"implicit": V_Implicit, "smith_separable": V_SmithGGXSeparable,
 _FRESNEL = {"none": F_None, "schlick": F_Schlick, "spherical_gaussian": F_SphericalGaussian, "exact": F_Exact}
 
 
+def brdf_visibility(geometry: str):
+    """The V function of a geometry rung whose argument is alpha (Schlick-GGX takes roughness)."""
+    return _VISIBILITY.get(geometry, V_Implicit)
+
+
 @functools.cache
 def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", distribution: str = "ggx",
-             geometry: str = "schlick_ggx", fresnel: str = "schlick"):
+             geometry: str = "schlick_ggx", fresnel: str = "schlick", albedo: tuple | None = None):
     """brdf(n, v, l, base_color, metallic, roughness, specular) -> f(l, v):
     (1 - F)(1 - metallic) c f_d + D F G / (4 n.l n.v), with G / (4 n.l n.v) evaluated in its
     visibility form V; n.v is clamped to MIN_COSINE, n.l <= 0 gives 0. The defaults are the seeds'
     model (f_d Lambert, GGX, Smith/Schlick-GGX, Schlick); the names pick other rungs per term.
+    ``albedo`` (the square table of energy.specular_albedo for the same rungs) turns on
+    multiple-scattering energy compensation of the specular lobe.
 
     Compiled with only the lobes a scene needs: without ``specular_lobe`` (every material has
     specular = 0 and metallic = 0, so F = 0) the Fresnel, D and V code is not generated; without
@@ -191,7 +198,24 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
         if value not in allowed:
             raise ValueError(f"unknown {name} model {value!r}; choose one of {allowed}")
     fresnel_term = _FRESNEL[fresnel]
-    visibility = _VISIBILITY.get(geometry, V_Implicit)
+    visibility = brdf_visibility(geometry)
+    multiscatter = albedo is not None
+    size = int(round(len(albedo) ** 0.5)) if multiscatter else 1
+    table = wp.constant(wp.types.matrix(shape=(size, size), dtype=wp.float32)(*(albedo if multiscatter else (1.0,))))
+
+    @wp.func
+    def energy_compensation(f0: wp.vec3, n_dot_v: float, roughness: float) -> wp.vec3:
+        """1 + f0 (1 / E - 1), E the single-scattering albedo of the lobe (Fdez-Agüera 2019,
+        as Filament): restores the energy of multiple bounces between microfacets."""
+        x = wp.clamp(n_dot_v * float(size) - 0.5, 0.0, float(size - 1))
+        y = wp.clamp(roughness * float(size - 1), 0.0, float(size - 1))
+        i0 = wp.min(int(x), size - 2)
+        j0 = wp.min(int(y), size - 2)
+        fx = x - float(i0)
+        fy = y - float(j0)
+        e = (table[i0, j0] * (1.0 - fx) + table[i0 + 1, j0] * fx) * (1.0 - fy) + \
+            (table[i0, j0 + 1] * (1.0 - fx) + table[i0 + 1, j0 + 1] * fx) * fy
+        return wp.vec3(1.0) + f0 * (1.0 / e - 1.0)
 
     @wp.func
     def diffuse_term(n_dot_v: float, n_dot_l: float, l_dot_h: float, roughness: float) -> float:
@@ -226,6 +250,8 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
             else:
                 V = visibility(n_dot_v, n_dot_l, alpha)
             out = F * (D * V)
+            if wp.static(multiscatter):
+                out = wp.cw_mul(out, energy_compensation(f0, n_dot_v, roughness))
             if wp.static(diffuse_lobe):
                 fd = diffuse_term(n_dot_v, n_dot_l, wp.dot(l, h), roughness)
                 out = wp.cw_mul(wp.vec3(1.0) - F, base_color) * ((1.0 - metallic) * fd) + out

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from .errors import InputError
 from pbrwarp.kernels.brdf import DIFFUSE_MODELS, DISTRIBUTIONS, FRESNEL_MODELS, GEOMETRY_MODELS
 
-ENERGY_MODELS = ("single",)
+ENERGY_MODELS = ("single", "multiscatter")
 
 
 @dataclass(frozen=True)
@@ -24,7 +24,8 @@ class BRDF:
       | "smith_correlated" (Heitz 2014) | "smith_correlated_fast" (Hammon 2017)
     - ``fresnel``: "none" (F = f0) | "schlick" | "spherical_gaussian" (Lagarde 2012) | "exact"
       (dielectric Fresnel with the IOR f0 implies)
-    - ``energy``: "single" (multi-scatter compensation is not implemented yet)
+    - ``energy``: "single" | "multiscatter" (energy compensation of the specular lobe with its
+      single-scattering albedo, integrated by a Warp kernel: Kulla & Conty 2017, Fdez-Agüera 2019)
     """
 
     diffuse: str = "lambert"
@@ -38,8 +39,7 @@ class BRDF:
                               ("geometry", GEOMETRY_MODELS), ("fresnel", FRESNEL_MODELS), ("energy", ENERGY_MODELS)):
             value = getattr(self, name)
             if value not in allowed:
-                hint = " (multi-scatter compensation is planned, not implemented yet)" if value == "multiscatter" else ""
-                raise InputError(f"BRDF {name} must be one of {', '.join(allowed)}, got {value!r}{hint}")
+                raise InputError(f"BRDF {name} must be one of {', '.join(allowed)}, got {value!r}")
 
     def describe(self) -> str:
         return (f"{self.diffuse} diffuse, {self.distribution} distribution, {self.geometry} geometry, "
@@ -56,8 +56,8 @@ PRESETS = {
     "balanced": BRDF(),
     # the exact Smith term (Heitz 2014) and Disney diffuse, with Schlick's Fresnel
     "accurate": BRDF(diffuse="burley", geometry="smith_correlated"),
-    # the most exact rung of every term implemented (bench/accuracy.py renders it at 256 spp)
-    "reference": BRDF(diffuse="burley", geometry="smith_correlated", fresnel="exact"),
+    # the most exact rung of every term (bench/accuracy.py's reference)
+    "reference": BRDF(diffuse="burley", geometry="smith_correlated", fresnel="exact", energy="multiscatter"),
 }
 
 
