@@ -174,9 +174,32 @@ _VISIBILITY = {"implicit": V_Implicit, "smith_separable": V_SmithGGXSeparable,
 _FRESNEL = {"none": F_None, "schlick": F_Schlick, "spherical_gaussian": F_SphericalGaussian, "exact": F_Exact}
 
 
-def brdf_visibility(geometry: str):
-    """The V function of a geometry rung whose argument is alpha (Schlick-GGX takes roughness)."""
-    return _VISIBILITY.get(geometry, V_Implicit)
+@functools.cache
+def visibility_for(geometry: str):
+    """V(n.v, n.l, roughness) of a geometry rung (Schlick-GGX is defined on roughness, the others
+    on alpha = roughness^2)."""
+    v_of_alpha = _VISIBILITY.get(geometry, V_Implicit)
+
+    @wp.func
+    def visibility(n_dot_v: float, n_dot_l: float, roughness: float) -> float:
+        if wp.static(geometry == "schlick_ggx"):
+            return V_SmithSchlickGGX(n_dot_v, n_dot_l, roughness)
+        return v_of_alpha(n_dot_v, n_dot_l, roughness * roughness)
+
+    return visibility
+
+
+@functools.cache
+def distribution_for(distribution: str):
+    """D(alpha, n.h, |n x h|^2) of a distribution rung."""
+
+    @wp.func
+    def ndf(alpha: float, n_dot_h: float, sin_sq: float) -> float:
+        if wp.static(distribution == "blinn_phong"):
+            return D_BlinnPhong(alpha, n_dot_h)
+        return D_GGX(alpha, n_dot_h, sin_sq)
+
+    return ndf
 
 
 @functools.cache
@@ -198,7 +221,8 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
         if value not in allowed:
             raise ValueError(f"unknown {name} model {value!r}; choose one of {allowed}")
     fresnel_term = _FRESNEL[fresnel]
-    visibility = brdf_visibility(geometry)
+    visibility = visibility_for(geometry)
+    ndf = distribution_for(distribution)
     multiscatter = albedo is not None
     size = int(round(len(albedo) ** 0.5)) if multiscatter else 1
     table = wp.constant(wp.types.matrix(shape=(size, size), dtype=wp.float32)(*(albedo if multiscatter else (1.0,))))
@@ -239,17 +263,8 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
             alpha = roughness * roughness
             f0 = specular_f0(base_color, metallic, specular)
             F = fresnel_term(f0, specular_f90(metallic, specular), v_dot_h)
-            D = float(0.0)
-            if wp.static(distribution == "ggx"):
-                D = D_GGX(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
-            else:
-                D = D_BlinnPhong(alpha, n_dot_h)
-            V = float(0.0)
-            if wp.static(geometry == "schlick_ggx"):
-                V = V_SmithSchlickGGX(n_dot_v, n_dot_l, roughness)
-            else:
-                V = visibility(n_dot_v, n_dot_l, alpha)
-            out = F * (D * V)
+            D = ndf(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
+            out = F * (D * visibility(n_dot_v, n_dot_l, roughness))
             if wp.static(multiscatter):
                 out = wp.cw_mul(out, energy_compensation(f0, n_dot_v, roughness))
             if wp.static(diffuse_lobe):

@@ -6,7 +6,7 @@ import functools
 import numpy as np
 import warp as wp
 
-from .brdf import D_BlinnPhong, D_GGX, V_SmithSchlickGGX, brdf_visibility
+from .brdf import D_GGX, distribution_for, visibility_for
 
 wp.set_module_options({"enable_backward": False})
 
@@ -19,7 +19,8 @@ ALBEDO_SAMPLES = 8192
 def albedo_kernel(distribution: str, geometry: str):
     """E(n.v, roughness) = integral of D V n.l over the hemisphere with F = 1, by importance
     sampling GGX half vectors (Walter et al. 2007) with a fixed seed."""
-    visibility = brdf_visibility(geometry)
+    visibility = visibility_for(geometry)
+    ndf = distribution_for(distribution)
 
     @wp.kernel(enable_backward=False, module="unique")
     def integrate(samples: int, out: wp.array2d(dtype=float)):
@@ -44,15 +45,8 @@ def albedo_kernel(distribution: str, geometry: str):
             if n_dot_l > 0.0 and v_dot_h > 0.0:
                 sampled_d = D_GGX(alpha, cos_h, sin_h * sin_h)
                 pdf = sampled_d * cos_h / (4.0 * v_dot_h)
-                d = sampled_d
-                if wp.static(distribution == "blinn_phong"):
-                    d = D_BlinnPhong(alpha, cos_h)
-                vis = float(0.0)
-                if wp.static(geometry == "schlick_ggx"):
-                    vis = V_SmithSchlickGGX(n_dot_v, n_dot_l, roughness)
-                else:
-                    vis = visibility(n_dot_v, n_dot_l, alpha)
-                total += d * vis * n_dot_l / pdf
+                d = ndf(alpha, cos_h, sin_h * sin_h)
+                total += d * visibility(n_dot_v, n_dot_l, roughness) * n_dot_l / pdf
         out[i, j] = total / float(samples)
 
     return integrate
