@@ -21,7 +21,7 @@ from .robust import (
     safe_normalize,
 )
 from .sampling import multi_jittered_sample
-from .scene_data import NO_TEXTURE, SceneData
+from .scene_data import NO_TEXTURE, MaterialData, SceneData
 from .textures import sample_texture
 
 wp.set_module_options({"enable_backward": False})
@@ -102,24 +102,19 @@ def render_kernel(features):
     lit = f.point_lights or f.directional_lights or f.spot_lights
 
     @wp.func
-    def is_culled(scene: SceneData, h: SurfaceHit) -> bool:
-        mat = scene.materials[h.material]
+    def is_culled(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
         if h.back_face == 1 and mat.double_sided == 0:
             return True
         if mat.alpha_mask == 1:
             alpha = mat.base_color[3] * interpolate(scene.colors, h)[3]
             if wp.static(f.base_color_texture):
-                alpha = alpha * texture_or_one(scene, mat.base_color_texture, interpolate(scene.uvs, h))[3]
+                alpha = alpha * texture_or_one(scene, mat.base_color_texture, uv)[3]
             return alpha < mat.alpha_cutoff
         return False
 
     @wp.func
-    def shade(scene: SceneData, h: SurfaceHit, view: wp.vec3, shading_normal: wp.vec3) -> wp.vec3:
-        mat = scene.materials[h.material]
+    def shade(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3, n: wp.vec3) -> wp.vec3:
         radiance = wp.vec3(0.0)
-        uv = wp.vec2(0.0)
-        if wp.static(textured):
-            uv = interpolate(scene.uvs, h)
         if wp.static(f.emission):
             radiance = mat.emissive
             if wp.static(f.emissive_texture):
@@ -139,7 +134,6 @@ def render_kernel(features):
                 mr = texture_or_one(scene, mat.metallic_roughness_texture, uv)
                 roughness = roughness * mr[1]
                 metallic = metallic * mr[2]
-            n = shading_normal
             for i in range(scene.num_lights):
                 ls = sample_light(scene.lights[i], h.p)
                 # light below the geometric surface: shading normals must not leak it through
@@ -160,16 +154,15 @@ def render_kernel(features):
         return radiance
 
     @wp.func
-    def shading_normal(scene: SceneData, h: SurfaceHit) -> wp.vec3:
+    def shading_normal(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
         """Interpolated (and normal-mapped) normal, turned to the side the ray came from."""
         front_ng = h.ng
         if h.back_face == 1:
             front_ng = -h.ng
         n = safe_normalize(interpolate(scene.normals, h), front_ng)
         if wp.static(f.normal_mapping):
-            mat = scene.materials[h.material]
             if mat.normal_texture != NO_TEXTURE:
-                texel = texture_or_one(scene, mat.normal_texture, interpolate(scene.uvs, h))
+                texel = texture_or_one(scene, mat.normal_texture, uv)
                 n = perturb_normal(n, interpolate(scene.tangents, h), texel, mat.normal_scale)
         if h.back_face == 1:
             n = -n
@@ -211,14 +204,18 @@ def render_kernel(features):
                 if not q.result:
                     break
                 h = surface_hit(scene, q.face, q.u, q.v, d)
+                mat = scene.materials[h.material]
+                uv = wp.vec2(0.0)
+                if wp.static(textured):
+                    uv = interpolate(scene.uvs, h)
                 if wp.static(f.pass_through):
-                    if is_culled(scene, h):
+                    if is_culled(scene, h, mat, uv):
                         origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
                         continue
                 n = wp.vec3(0.0)
                 if wp.static(lit or f.aovs):
-                    n = shading_normal(scene, h)
-                radiance = radiance + shade(scene, h, -d, n)
+                    n = shading_normal(scene, h, mat, uv)
+                radiance = radiance + shade(scene, h, mat, uv, -d, n)
                 hits = hits + 1
                 if wp.static(f.aovs):
                     normal_sum = normal_sum + n

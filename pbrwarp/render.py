@@ -139,16 +139,11 @@ def render(
     bar = _progress_bar(len(work), progress)
     # compile or load the kernel once, before many threads would all try at once
     load_for_cpu(kernel)
+    run = map if workers == 1 or len(work) == 1 else _thread_pool(workers).map
     try:
-        if workers == 1 or len(work) == 1:
-            for band in work:
-                launch(band)
-                if bar is not None:
-                    bar.update(1)
-        else:
-            for _ in _thread_pool(workers).map(launch, work):
-                if bar is not None:
-                    bar.update(1)
+        for _ in run(launch, work):
+            if bar is not None:
+                bar.update(1)
     finally:
         if bar is not None:
             bar.close()
