@@ -40,7 +40,6 @@ class _Geometry:
     tangents: wp.array
     colors: wp.array
     face_primitive: wp.array
-    uv_present: list
 
 
 @dataclass
@@ -86,19 +85,17 @@ def _build_geometry(prims, key) -> _Geometry:
     if not np.all(np.isfinite(positions)):
         raise InputError("a vertex position overflows float32 (|x| > 3.4e38)")
 
-    def column(attr, width, default):
-        parts = []
-        for p in prims:
-            value = getattr(p, attr) if attr != "tangents" else _primitive_tangents(p)
-            parts.append(np.full((len(p.positions), width), default, np.float64) if value is None else value)
-        return np.concatenate(parts).astype(np.float64 if attr == "normals" else np.float32)
+    def column(values, width, default):
+        """Per-primitive attribute arrays stacked in float64; ``default`` where one is missing."""
+        return np.concatenate([np.full((len(p.positions), width), default, np.float64) if v is None else v
+                               for p, v in zip(prims, values)])
 
     # unit length in float64 here: float32 squares of 1e-20 or 1e20 long normals would
     # under- or overflow in the kernels; zero rows (flat shading) stay zero
-    normals = unit_rows(column("normals", 3, 0.0)).astype(np.float32)
-    uvs = column("uvs", 2, 0.0)
-    tangents = column("tangents", 4, 0.0)
-    colors = column("colors", 4, 1.0)
+    normals = unit_rows(column([p.normals for p in prims], 3, 0.0)).astype(np.float32)
+    uvs = column([p.uvs for p in prims], 2, 0.0).astype(np.float32)
+    tangents = column([_primitive_tangents(p) for p in prims], 4, 0.0).astype(np.float32)
+    colors = column([p.colors for p in prims], 4, 1.0).astype(np.float32)
     face_primitive = np.concatenate([np.full(len(p.faces), i, np.int32) for i, p in enumerate(prims)])
     wp_positions = wp.array(positions, dtype=wp.vec3, device="cpu")
     wp_indices = wp.array(indices, dtype=wp.int32, device="cpu")
@@ -113,7 +110,6 @@ def _build_geometry(prims, key) -> _Geometry:
         tangents=wp.array(tangents, dtype=wp.vec4, device="cpu"),
         colors=wp.array(colors, dtype=wp.vec4, device="cpu"),
         face_primitive=wp.array(face_primitive, dtype=wp.int32, device="cpu"),
-        uv_present=[p.uvs is not None for p in prims],
     )
 
 
