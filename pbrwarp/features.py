@@ -76,7 +76,6 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF
     prims = scene.primitives
     rows = gpu.material_rows
     mats = [p.material for p in prims]
-    kinds = {light.kind for light in scene.lights}
     count = {k: sum(1 for light in scene.lights if light.kind == k) for k in (POINT, DIRECTIONAL, SPOT)}
 
     def slot(attr, label):
@@ -90,9 +89,9 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF
 
     decisions.append(Decision("brdf", brdf, f"BRDF energy: {brdf.energy} scattering"))
 
-    for name, label in (("point_lights", "point light"), ("directional_lights", "directional light"), ("spot_lights", "spot light")):
-        kind = {"point_lights": POINT, "directional_lights": DIRECTIONAL, "spot_lights": SPOT}[name]
-        add(name, kind in kinds, f"{count[kind]} {label}{'s' if count[kind] != 1 else ''}" if kind in kinds else f"no {label}s")
+    for name, kind, label in (("point_lights", POINT, "point light"), ("directional_lights", DIRECTIONAL, "directional light"),
+                              ("spot_lights", SPOT, "spot light")):
+        add(name, count[kind], _count(count[kind], label) if count[kind] else f"no {label}s")
     if not scene.lights:
         add("diffuse", False, "no lights: only emission and the background")
         add("specular", False, "no lights: no reflection")
