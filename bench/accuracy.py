@@ -21,6 +21,7 @@ Writes bench/results/accuracy.{md,json,png} and accuracy_differences.png (a cont
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -109,7 +110,7 @@ def flip(test_frame, ref_frame):
 def brdf_ns_per_eval(brdf, repeats):
     threads, evals = 1000, 10_000
     out = wp.empty(threads, dtype=wp.vec3, device="cpu")
-    kernel = stages.brdf_throughput_kernel(brdf.diffuse, brdf.distribution, brdf.geometry, brdf.fresnel, brdf.energy)
+    kernel = stages.brdf_throughput_kernel(**dataclasses.asdict(brdf))
     full = median_time(lambda: wp.launch(kernel, threads, inputs=[evals, out], device="cpu"), repeats)
     inputs = median_time(lambda: wp.launch(stages.random_inputs_only, threads, inputs=[evals, out], device="cpu"), repeats)
     return 1e9 * (full - inputs) / (threads * evals)

@@ -169,6 +169,7 @@ DIFFUSE_MODELS = ("lambert", "burley")
 DISTRIBUTIONS = ("ggx", "blinn_phong")
 GEOMETRY_MODELS = ("implicit", "schlick_ggx", "smith_separable", "smith_correlated", "smith_correlated_fast")
 FRESNEL_MODELS = ("none", "schlick", "spherical_gaussian", "exact")
+ENERGY_MODELS = ("single", "multiscatter")
 _VISIBILITY = {"implicit": V_Implicit, "smith_separable": V_SmithGGXSeparable,
                "smith_correlated": V_SmithGGXCorrelated, "smith_correlated_fast": V_SmithGGXCorrelatedFast}
 _FRESNEL = {"none": F_None, "schlick": F_Schlick, "spherical_gaussian": F_SphericalGaussian, "exact": F_Exact}
@@ -202,44 +203,122 @@ def distribution_for(distribution: str):
     return ndf
 
 
-@functools.cache
-def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", distribution: str = "ggx",
-             geometry: str = "schlick_ggx", fresnel: str = "schlick", albedo: tuple | None = None):
-    """brdf(n, v, l, base_color, metallic, roughness, specular) -> f(l, v):
-    (1 - F)(1 - metallic) c f_d + D F G / (4 n.l n.v), with G / (4 n.l n.v) evaluated in its
-    visibility form V; n.v is clamped to MIN_COSINE, n.l <= 0 gives 0. The defaults are the seeds'
-    model (f_d Lambert, GGX, Smith/Schlick-GGX, Schlick); the names pick other rungs per term.
-    ``albedo`` (the square table of energy.specular_albedo for the same rungs) turns on
-    multiple-scattering energy compensation of the specular lobe.
+COUPLING_MODELS = ("albedo", "fresnel", "none")
+# Floor of 1 - E_avg in the albedo coupling: a white metal's lobe reflects all light (E_avg -> 1),
+# and its diffuse weight (1 - metallic) is 0 anyway.
+MIN_DIFFUSE_SHARE = wp.constant(1.0e-6)
 
-    Compiled with only the lobes a scene needs: without ``specular_lobe`` (every material has
-    specular = 0 and metallic = 0, so F = 0) the Fresnel, D and V code is not generated; without
-    ``diffuse_lobe`` (every material fully metallic) the diffuse code is not. Either gives bit for
-    bit what the full BRDF gives on such materials (for Fresnel models with F(f0 = f90 = 0) = 0)."""
-    for name, value, allowed in (("diffuse", diffuse, DIFFUSE_MODELS), ("distribution", distribution, DISTRIBUTIONS),
-                                 ("geometry", geometry, GEOMETRY_MODELS), ("fresnel", fresnel, FRESNEL_MODELS)):
-        if value not in allowed:
-            raise ValueError(f"unknown {name} model {value!r}; choose one of {allowed}")
-    fresnel_term = _FRESNEL[fresnel]
-    visibility = visibility_for(geometry)
-    ndf = distribution_for(distribution)
-    multiscatter = albedo is not None
-    size = int(round(len(albedo) ** 0.5)) if multiscatter else 1
-    table = wp.constant(wp.types.matrix(shape=(size, size), dtype=wp.float32)(*(albedo if multiscatter else (1.0,))))
+
+@functools.cache
+def albedo_lookup(distribution: str, geometry: str, fresnel: str):
+    """(lookup, averages) over the energy tables of a rung triple: lookup(n.x, roughness) -> (E1, Ew),
+    bilinear like energy.interpolate_rows; averages(roughness) -> the four cosine-weighted means."""
+    from .energy import albedo_tables
+
+    t = albedo_tables(distribution, geometry, fresnel)
+    size = t.size
+    table = wp.constant(wp.types.matrix(shape=(size, 2 * size), dtype=wp.float32)(*t.albedo))
+    means = wp.constant(wp.types.matrix(shape=(4, size), dtype=wp.float32)(*t.averages))
 
     @wp.func
-    def energy_compensation(f0: wp.vec3, n_dot_v: float, roughness: float) -> wp.vec3:
-        """1 + f0 (1 / E - 1), E the single-scattering albedo of the lobe (Fdez-Agüera 2019,
-        as Filament): restores the energy of multiple bounces between microfacets."""
-        x = wp.clamp(n_dot_v * float(size) - 0.5, 0.0, float(size - 1))
+    def lookup(n_dot: float, roughness: float) -> wp.vec2:
+        x = wp.clamp(n_dot * float(size) - 0.5, 0.0, float(size - 1))
         y = wp.clamp(roughness * float(size - 1), 0.0, float(size - 1))
         i0 = wp.min(int(x), size - 2)
         j0 = wp.min(int(y), size - 2)
         fx = x - float(i0)
         fy = y - float(j0)
-        e = (table[i0, j0] * (1.0 - fx) + table[i0 + 1, j0] * fx) * (1.0 - fy) + \
-            (table[i0, j0 + 1] * (1.0 - fx) + table[i0 + 1, j0 + 1] * fx) * fy
-        return wp.vec3(1.0) + f0 * (1.0 / e - 1.0)
+        out = wp.vec2(0.0)
+        for c in range(2):
+            low = table[i0, 2 * j0 + c] * (1.0 - fx) + table[i0 + 1, 2 * j0 + c] * fx
+            high = table[i0, 2 * j0 + 2 + c] * (1.0 - fx) + table[i0 + 1, 2 * j0 + 2 + c] * fx
+            out[c] = low * (1.0 - fy) + high * fy
+        return out
+
+    @wp.func
+    def averages(roughness: float) -> wp.vec4:
+        y = wp.clamp(roughness * float(size - 1), 0.0, float(size - 1))
+        j0 = wp.min(int(y), size - 2)
+        fy = y - float(j0)
+        out = wp.vec4(0.0)
+        for c in range(4):
+            out[c] = means[c, j0] * (1.0 - fy) + means[c, j0 + 1] * fy
+        return out
+
+    return lookup, averages
+
+
+@functools.cache
+def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", distribution: str = "ggx",
+             geometry: str = "schlick_ggx", fresnel: str = "schlick", energy: str = "single",
+             coupling: str = "albedo"):
+    """brdf(n, v, l, base_color, metallic, roughness, specular) -> f(l, v):
+    k (1 - metallic) c f_d + D F V, V = G / (4 n.l n.v) in its visibility form; n.v is clamped to
+    MIN_COSINE, n.l <= 0 gives 0. The names pick each term's rung; the defaults are the seeds'
+    terms (f_d Lambert, GGX, Smith/Schlick-GGX, Schlick, single scattering).
+
+    ``coupling`` is k, the share of light left to the diffuse lobe: "albedo" (default),
+    (1 - E(v))(1 - E(l)) / (1 - E_avg) with E the specular lobe's directional albedo (Kelemen &
+    Szirmay-Kalos 2001; Kulla & Conty 2017), which is reciprocal and conserves energy exactly for
+    Lambert (white-furnace albedo E(v) + (1 - E(v)) = 1); "fresnel", the seeds' 1 - F(v.h), which
+    gives smooth white dielectrics seen at grazing angles up to ~6% more light than they receive;
+    "none", diffuse and specular simply added (Filament). ``energy="multiscatter"`` scales the
+    specular lobe by 1 + f0 (1/E1 - 1) (Fdez-Agüera 2019, as Filament).
+
+    Compiled with only the lobes a scene needs: without ``specular_lobe`` (every material has
+    specular = 0 and metallic = 0, so f0 = f90 = 0) the Fresnel, D, V and albedo code is not
+    generated; without ``diffuse_lobe`` (every material fully metallic) the diffuse code is not.
+    Either gives bit for bit what the full BRDF gives on such materials."""
+    for name, value, allowed in (("diffuse", diffuse, DIFFUSE_MODELS), ("distribution", distribution, DISTRIBUTIONS),
+                                 ("geometry", geometry, GEOMETRY_MODELS), ("fresnel", fresnel, FRESNEL_MODELS),
+                                 ("energy", energy, ENERGY_MODELS), ("coupling", coupling, COUPLING_MODELS)):
+        if value not in allowed:
+            raise ValueError(f"unknown {name} model {value!r}; choose one of {allowed}")
+    fresnel_term = _FRESNEL[fresnel]
+    visibility = visibility_for(geometry)
+    ndf = distribution_for(distribution)
+    multiscatter = energy == "multiscatter" and specular_lobe
+    albedo_coupling = coupling == "albedo" and specular_lobe and diffuse_lobe
+    fresnel_coupling = coupling == "fresnel" and specular_lobe and diffuse_lobe
+    if multiscatter or albedo_coupling:
+        lookup, averages = albedo_lookup(distribution, geometry, fresnel)
+    else:
+        lookup, averages = _no_lookup()
+
+    @wp.func
+    def energy_compensation(f0: wp.vec3, e1: float) -> wp.vec3:
+        """1 + f0 (1 / E1 - 1) (Fdez-Agüera 2019, as Filament): restores the energy of multiple
+        bounces between microfacets."""
+        return wp.vec3(1.0) + f0 * (1.0 / e1 - 1.0)
+
+    @wp.func
+    def lobe_albedo(f0: wp.vec3, f90: wp.vec3, n_dot: float, roughness: float) -> wp.vec3:
+        """E(n.x) = f0 (E1 - Ew) + f90 Ew, times the compensation with multiple scattering."""
+        e = lookup(n_dot, roughness)
+        out = f0 * (e[0] - e[1]) + f90 * e[1]
+        if wp.static(multiscatter):
+            out = wp.cw_mul(out, energy_compensation(f0, e[0]))
+        return out
+
+    @wp.func
+    def mean_lobe_albedo(f0: wp.vec3, f90: wp.vec3, roughness: float) -> wp.vec3:
+        """E_avg, the cosine-weighted mean of lobe_albedo over the hemisphere."""
+        m = averages(roughness)
+        out = f0 * m[0] + f90 * m[1]
+        if wp.static(multiscatter):
+            out = out + wp.cw_mul(f0, f0) * m[2] + wp.cw_mul(f0, f90) * m[3]
+        return out
+
+    @wp.func
+    def albedo_share(f0: wp.vec3, f90: wp.vec3, n_dot_v: float, n_dot_l: float, roughness: float) -> wp.vec3:
+        """(1 - E(v))(1 - E(l)) / (1 - E_avg) per channel (Kelemen & Szirmay-Kalos 2001)."""
+        out_v = wp.vec3(1.0) - lobe_albedo(f0, f90, n_dot_v, roughness)
+        out_l = wp.vec3(1.0) - lobe_albedo(f0, f90, n_dot_l, roughness)
+        rest = wp.vec3(1.0) - mean_lobe_albedo(f0, f90, roughness)
+        out = wp.vec3(0.0)
+        for c in range(3):
+            out[c] = wp.max(out_v[c], 0.0) * wp.max(out_l[c], 0.0) / wp.max(rest[c], MIN_DIFFUSE_SHARE)
+        return out
 
     @wp.func
     def diffuse_term(n_dot_v: float, n_dot_l: float, l_dot_h: float, roughness: float) -> float:
@@ -262,20 +341,41 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
             v_dot_h = wp.clamp(wp.dot(v, h), 0.0, 1.0)
             alpha = roughness * roughness
             f0 = specular_f0(base_color, metallic, specular)
-            F = fresnel_term(f0, specular_f90(metallic, specular), v_dot_h)
+            f90 = specular_f90(metallic, specular)
+            F = fresnel_term(f0, f90, v_dot_h)
             D = ndf(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
             out = F * (D * visibility(n_dot_v, n_dot_l, roughness))
             if wp.static(multiscatter):
-                out = wp.cw_mul(out, energy_compensation(f0, n_dot_v, roughness))
+                out = wp.cw_mul(out, energy_compensation(f0, lookup(n_dot_v, roughness)[0]))
             if wp.static(diffuse_lobe):
+                share = wp.vec3(1.0)
+                if wp.static(fresnel_coupling):
+                    share = wp.vec3(1.0) - F
+                if wp.static(albedo_coupling):
+                    share = albedo_share(f0, f90, n_dot_v, n_dot_l, roughness)
                 fd = diffuse_term(n_dot_v, n_dot_l, wp.dot(l, h), roughness)
-                out = wp.cw_mul(wp.vec3(1.0) - F, base_color) * ((1.0 - metallic) * fd) + out
+                out = wp.cw_mul(share, base_color) * ((1.0 - metallic) * fd) + out
         elif wp.static(diffuse_lobe):
             fd = diffuse_term(n_dot_v, n_dot_l, wp.dot(l, h), roughness)
             out = base_color * ((1.0 - metallic) * fd)
         return out
 
     return brdf
+
+
+@functools.cache
+def _no_lookup():
+    """Placeholders for rungs that use no albedo table (never called: wp.static removes the calls)."""
+
+    @wp.func
+    def lookup(n_dot: float, roughness: float) -> wp.vec2:
+        return wp.vec2(1.0, 0.0)
+
+    @wp.func
+    def averages(roughness: float) -> wp.vec4:
+        return wp.vec4(0.0)
+
+    return lookup, averages
 
 
 # The seeds' model, every lobe compiled in.

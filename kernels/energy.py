@@ -1,7 +1,17 @@
-"""Single-scattering directional albedo of the specular lobe, integrated by a Warp kernel: the
-table multiple-scattering energy compensation needs (Kulla & Conty 2017; Fdez-Agüera 2019)."""
+"""Directional albedo of the specular lobe, integrated by a Warp kernel: the tables that
+multiple-scattering compensation and the energy-conserving diffuse coupling need (Kelemen &
+Szirmay-Kalos 2001; Kulla & Conty 2017; Fdez-Agüera 2019).
+
+For a Fresnel term linear in (f0, f90), F = f0 (1 - w(v.h)) + f90 w(v.h) (Schlick: w = (1 - v.h)^5),
+the albedo splits as Karis' DFG table does:
+
+    E(mu, f0, f90) = f0 (E1 - Ew) + f90 Ew,  E1 = integral of D V n.l,  Ew = integral of D V n.l w,
+
+so two numbers per (mu = n.v, roughness) serve every material.
+"""
 
 import functools
+from typing import NamedTuple
 
 import numpy as np
 import warp as wp
@@ -10,20 +20,51 @@ from .brdf import D_GGX, distribution_for, visibility_for
 
 wp.set_module_options({"enable_backward": False})
 
-# Rows: n.v = (i + 0.5) / SIZE; columns: roughness = j / (SIZE - 1).
-ALBEDO_TABLE_SIZE = 16
+# Rows: n.v = (i + 0.5) / SIZE; columns: roughness = j / (SIZE - 1). 32 rows resolve the steep
+# rise of Fresnel reflectance near grazing views that 16 rows blurred (the furnace test's error).
+ALBEDO_TABLE_SIZE = 32
 ALBEDO_SAMPLES = 8192
+# Points of the midpoint rule for the cosine-weighted averages over n.l (of the interpolated table).
+AVERAGE_POINTS = 4096
+
+
+@wp.func
+def fresnel_weight(shape: int, v_dot_h: float) -> float:
+    """w(v.h) of F = f0 (1 - w) + f90 w: 0 for "none", Schlick's (1 - v.h)^5, or the spherical-Gaussian fit."""
+    if shape == 0:
+        return 0.0
+    if shape == 1:
+        x = 1.0 - v_dot_h
+        return x * x * x * x * x
+    return wp.pow(2.0, (-5.55473 * v_dot_h - 6.98316) * v_dot_h)
+
+
+# The exact dielectric Fresnel is not linear in f0: its albedo uses Schlick's split, which it
+# approximates (within ~1% in albedo for f0 <= 0.08).
+FRESNEL_SHAPES = {"none": 0, "schlick": 1, "exact": 1, "spherical_gaussian": 2}
+
+
+@wp.func
+def radical_inverse_base2(k: int) -> float:
+    """Van der Corput's radical inverse of k in base 2: the second Hammersley coordinate."""
+    bits = wp.uint32(k)
+    bits = (bits << wp.uint32(16)) | (bits >> wp.uint32(16))
+    bits = ((bits & wp.uint32(0x55555555)) << wp.uint32(1)) | ((bits & wp.uint32(0xAAAAAAAA)) >> wp.uint32(1))
+    bits = ((bits & wp.uint32(0x33333333)) << wp.uint32(2)) | ((bits & wp.uint32(0xCCCCCCCC)) >> wp.uint32(2))
+    bits = ((bits & wp.uint32(0x0F0F0F0F)) << wp.uint32(4)) | ((bits & wp.uint32(0xF0F0F0F0)) >> wp.uint32(4))
+    bits = ((bits & wp.uint32(0x00FF00FF)) << wp.uint32(8)) | ((bits & wp.uint32(0xFF00FF00)) >> wp.uint32(8))
+    return float(bits) * 2.3283064365386963e-10
 
 
 @functools.cache
 def albedo_kernel(distribution: str, geometry: str):
-    """E(n.v, roughness) = integral of D V n.l over the hemisphere with F = 1, by importance
-    sampling GGX half vectors (Walter et al. 2007) with a fixed seed."""
+    """E1 and Ew at each (n.v, roughness) by importance sampling GGX half vectors (Walter et al.
+    2007) at the points of a Hammersley set (deterministic, and far less noisy than random points)."""
     visibility = visibility_for(geometry)
     ndf = distribution_for(distribution)
 
     @wp.kernel(enable_backward=False, module="unique")
-    def integrate(samples: int, out: wp.array2d(dtype=float)):
+    def integrate(samples: int, shape: int, out: wp.array3d(dtype=float)):
         i, j = wp.tid()
         size = out.shape[0]
         n_dot_v = (float(i) + 0.5) / float(size)
@@ -31,11 +72,11 @@ def albedo_kernel(distribution: str, geometry: str):
         alpha = wp.max(roughness * roughness, 3.1622776e-4)
         a2 = alpha * alpha
         v = wp.vec3(wp.sqrt(1.0 - n_dot_v * n_dot_v), 0.0, n_dot_v)
-        state = wp.rand_init(9871, i * size + j)
         total = float(0.0)
-        for _ in range(samples):
-            u1 = wp.randf(state)
-            phi = 2.0 * 3.14159265358979 * wp.randf(state)
+        weighted = float(0.0)
+        for k in range(samples):
+            u1 = (float(k) + 0.5) / float(samples)
+            phi = 2.0 * 3.14159265358979 * radical_inverse_base2(k)
             cos_h = wp.sqrt((1.0 - u1) / (1.0 + (a2 - 1.0) * u1))
             sin_h = wp.sqrt(wp.max(0.0, 1.0 - cos_h * cos_h))
             h = wp.vec3(sin_h * wp.cos(phi), sin_h * wp.sin(phi), cos_h)
@@ -46,17 +87,56 @@ def albedo_kernel(distribution: str, geometry: str):
                 sampled_d = D_GGX(alpha, cos_h, sin_h * sin_h)
                 pdf = sampled_d * cos_h / (4.0 * v_dot_h)
                 d = ndf(alpha, cos_h, sin_h * sin_h)
-                total += d * visibility(n_dot_v, n_dot_l, roughness) * n_dot_l / pdf
-        out[i, j] = total / float(samples)
+                value = d * visibility(n_dot_v, n_dot_l, roughness) * n_dot_l / pdf
+                total += value
+                weighted += value * fresnel_weight(shape, v_dot_h)
+        out[i, j, 0] = total / float(samples)
+        out[i, j, 1] = weighted / float(samples)
 
     return integrate
 
 
+class AlbedoTables(NamedTuple):
+    """Row-major tuples (hashable, so kernels can be specialized on them).
+
+    ``albedo``: SIZE x 2 SIZE, E1 at column 2j and Ew at 2j + 1 (row i: n.v = (i + 0.5) / SIZE).
+    ``averages``: 4 x SIZE, per roughness column the cosine-weighted hemispherical averages
+    2 integral of x(mu) mu dmu of x = E1 - Ew, Ew, (E1 - Ew)(1/E1 - 1), Ew (1/E1 - 1), so that
+    E_avg = f0 <E1 - Ew> + f90 <Ew> single-scattering, plus f0^2 <..> + f0 f90 <..> with
+    multiple-scattering compensation. They average the table as bilinear_albedo interpolates it.
+    """
+
+    albedo: tuple
+    averages: tuple
+    size: int
+
+
+def interpolate_rows(table: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """table[:, j] at n.v = mu, linearly between row centres and clamped beyond them: the
+    interpolation the kernels' lookup does."""
+    size = table.shape[0]
+    x = np.clip(mu * size - 0.5, 0.0, size - 1.0)
+    i0 = np.minimum(x.astype(int), size - 2)
+    f = (x - i0)[:, None]
+    return table[i0] * (1.0 - f) + table[i0 + 1] * f
+
+
 @functools.cache
-def specular_albedo(distribution: str, geometry: str) -> tuple:
-    """The table, row-major, as a tuple (hashable, so kernels can be specialized on it); computed
-    once per process and rung pair (about 0.1 s plus the kernel's first compile)."""
-    out = wp.zeros((ALBEDO_TABLE_SIZE, ALBEDO_TABLE_SIZE), dtype=float, device="cpu")
-    wp.launch(albedo_kernel(distribution, geometry), dim=out.shape, inputs=[ALBEDO_SAMPLES, out], device="cpu")
-    table = np.clip(out.numpy(), 1e-3, 1.0)
-    return tuple(float(x) for x in table.ravel())
+def albedo_tables(distribution: str, geometry: str, fresnel: str) -> AlbedoTables:
+    """The tables of a rung triple; computed once per process (about 0.2 s plus the kernel's first
+    compile, which Warp caches on disk)."""
+    size = ALBEDO_TABLE_SIZE
+    out = wp.zeros((size, size, 2), dtype=float, device="cpu")
+    wp.launch(albedo_kernel(distribution, geometry), dim=(size, size), device="cpu",
+              inputs=[ALBEDO_SAMPLES, FRESNEL_SHAPES[fresnel], out])
+    raw = out.numpy().astype(np.float64)
+    e1 = np.clip(raw[..., 0], 1e-3, 1.0)
+    ew = np.clip(raw[..., 1], 0.0, e1)
+    mu = (np.arange(AVERAGE_POINTS) + 0.5) / AVERAGE_POINTS
+    e1_mu, ew_mu = interpolate_rows(e1, mu), interpolate_rows(ew, mu)
+    loss = 1.0 / e1_mu - 1.0
+    weights = (2.0 * mu / AVERAGE_POINTS)[:, None]
+    averages = np.stack([((e1_mu - ew_mu) * weights).sum(0), (ew_mu * weights).sum(0),
+                         ((e1_mu - ew_mu) * loss * weights).sum(0), (ew_mu * loss * weights).sum(0)])
+    albedo = np.stack([e1, ew], axis=-1).reshape(size, 2 * size)
+    return AlbedoTables(tuple(float(x) for x in albedo.ravel()), tuple(float(x) for x in averages.ravel()), size)

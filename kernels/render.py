@@ -2,6 +2,7 @@
 rays, accumulated over stratified sub-pixel samples. Built per feature set, so the compiled
 code holds only what a scene needs."""
 
+import dataclasses
 import functools
 from typing import Any
 
@@ -9,7 +10,6 @@ import warp as wp
 
 from .brdf import brdf_for
 from .camera import CameraData, camera_ray_direction
-from .energy import specular_albedo
 from .lights import light_sampler
 from .normal_mapping import perturb_normal
 from .robust import (
@@ -94,10 +94,7 @@ def render_kernel(features):
     """
     f = features
     textured = f.textures
-    albedo = None
-    if f.brdf.energy == "multiscatter" and f.specular:
-        albedo = specular_albedo(f.brdf.distribution, f.brdf.geometry)
-    brdf = brdf_for(f.diffuse, f.specular, f.brdf.diffuse, f.brdf.distribution, f.brdf.geometry, f.brdf.fresnel, albedo)
+    brdf = brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf))
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
     lit = f.point_lights or f.directional_lights or f.spot_lights
 

@@ -6,7 +6,6 @@ import functools
 import warp as wp
 
 from .brdf import brdf_for
-from .energy import specular_albedo
 
 from .camera import CameraData, camera_ray_direction
 from .robust import RAY_FAR, offset_ray_origin, triangle_hit_error, safe_normalize
@@ -63,11 +62,11 @@ def any_hits(mesh: wp.uint64, origins: wp.array(dtype=wp.vec3), to_light: wp.vec
 
 
 @functools.cache
-def brdf_throughput_kernel(diffuse: str, distribution: str, geometry: str, fresnel: str, energy: str = "single"):
+def brdf_throughput_kernel(**rungs):
     """A kernel evaluating the BRDF ``evals`` times per thread on inputs that vary with every call
-    (the sum is written so that nothing is optimized away): time per evaluation of a rung."""
-    albedo = specular_albedo(distribution, geometry) if energy == "multiscatter" else None
-    brdf = brdf_for(True, True, diffuse, distribution, geometry, fresnel, albedo)
+    (the sum is written so that nothing is optimized away): time per evaluation of the rungs
+    (brdf_for's keyword names)."""
+    brdf = brdf_for(True, True, **rungs)
 
     @wp.kernel(enable_backward=False, module="unique")
     def evaluate(evals: int, out: wp.array(dtype=wp.vec3)):

@@ -87,7 +87,7 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF
     def add(name, present, why):
         decisions.append(Decision(name, bool(present), why))
 
-    decisions.append(Decision("brdf", brdf, f"BRDF energy: {brdf.energy} scattering"))
+    decisions.append(Decision("brdf", brdf, f"BRDF energy: {brdf.energy} scattering, {brdf.coupling} coupling of the diffuse lobe"))
 
     for name, kind, label in (("point_lights", POINT, "point light"), ("directional_lights", DIRECTIONAL, "directional light"),
                               ("spot_lights", SPOT, "spot light")):

@@ -27,8 +27,10 @@ def f_schlick(f0, f90, v_dot_h):
     return f0 + (f90 - f0) * (1.0 - v_dot_h)[..., None] ** 5
 
 
-def brdf(n, v, l, base, metallic, roughness, specular):
-    """Lambert + Cook-Torrance with metallic-roughness and KHR_materials_specular's strength."""
+def brdf(n, v, l, base, metallic, roughness, specular, share=None):
+    """Lambert + Cook-Torrance with metallic-roughness and KHR_materials_specular's strength.
+    ``share(f0, f90, n.v, n.l, roughness)`` is the diffuse lobe's share of light; None is the
+    seeds' 1 - F(v.h)."""
     h = normalize(v + l)
     nl = np.sum(n * l, -1)
     nv = np.sum(n * v, -1)
@@ -42,8 +44,28 @@ def brdf(n, v, l, base, metallic, roughness, specular):
     D = d_ggx(nh, roughness**2)
     G = g_schlick_ggx(nv, nl, roughness)
     spec = F * (D * G / (4 * nl * nv))[..., None]
-    diffuse = (1 - F) * (1 - m) * base / np.pi
+    k = 1 - F if share is None else share(f0, f90, nv, nl, roughness)
+    diffuse = k * (1 - m) * base / np.pi
     return diffuse + spec
+
+
+def ggx_lobe_albedo(n_dot_v, roughness, samples=200_000, seed=5):
+    """(E1, Ew, standard errors) of the Schlick-GGX specular lobe at n.v: the integrals of
+    D G / (4 n.l n.v) n.l over the hemisphere with F = 1 and with F = (1 - v.h)^5, by sampling
+    GGX half vectors (pdf D n.h / (4 v.h), Walter et al. 2007), whose weight is G v.h / (n.v n.h)."""
+    rng = np.random.default_rng(seed)
+    a2 = max(roughness**4, 1e-7)
+    u1, u2 = rng.random(samples), rng.random(samples)
+    cos_h = np.sqrt((1 - u1) / (1 + (a2 - 1) * u1))
+    sin_h = np.sqrt(1 - cos_h**2)
+    h = np.stack([sin_h * np.cos(2 * np.pi * u2), sin_h * np.sin(2 * np.pi * u2), cos_h], -1)
+    v = np.array([np.sqrt(1 - n_dot_v**2), 0.0, n_dot_v])
+    v_dot_h = h @ v
+    n_dot_l = 2 * v_dot_h * cos_h - n_dot_v
+    ok = (n_dot_l > 0) & (v_dot_h > 0)
+    weight = np.where(ok, g_schlick_ggx(n_dot_v, np.maximum(n_dot_l, 1e-300), roughness) * v_dot_h / (n_dot_v * cos_h), 0)
+    weighted = weight * np.clip(1 - v_dot_h, 0, 1) ** 5
+    return weight.mean(), weighted.mean(), weight.std() / np.sqrt(samples), weighted.std() / np.sqrt(samples)
 
 
 def srgb_encode(x):

@@ -11,13 +11,16 @@ import reference as ref
 N = 4096
 
 
+seeds_brdf = kb.brdf_for(True, True, coupling="fresnel")
+
+
 @wp.kernel(enable_backward=False)
 def eval_terms(
     n: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), l: wp.array(dtype=wp.vec3),
     base: wp.array(dtype=wp.vec3), metallic: wp.array(dtype=float), roughness: wp.array(dtype=float),
     specular: wp.array(dtype=float), n_dot_h: wp.array(dtype=float), sin_sq: wp.array(dtype=float),
     out_d: wp.array(dtype=float), out_g: wp.array(dtype=float), out_f: wp.array(dtype=wp.vec3),
-    out_brdf: wp.array(dtype=wp.vec3),
+    out_brdf: wp.array(dtype=wp.vec3), out_seeds: wp.array(dtype=wp.vec3),
 ):
     i = wp.tid()
     h = wp.normalize(v[i] + l[i])
@@ -27,6 +30,7 @@ def eval_terms(
     f0 = kb.specular_f0(base[i], metallic[i], specular[i])
     out_f[i] = kb.F_Schlick(f0, kb.specular_f90(metallic[i], specular[i]), wp.dot(v[i], h))
     out_brdf[i] = kb.brdf_cook_torrance(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
+    out_seeds[i] = seeds_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
 
 
 def random_hemisphere(rng, n, count, min_cos):
@@ -60,7 +64,7 @@ def evaluated():
     arrays = dict(n=n, v=v, l=l, base=base, metallic=metallic, roughness=roughness, specular=specular,
                   n_dot_h=n_dot_h, sin_sq=sin_sq)
     dev = {k: wp.array(a.astype(np.float32), dtype=wp.vec3 if a.ndim == 2 else float) for k, a in arrays.items()}
-    outs = [wp.zeros(N, dtype=float), wp.zeros(N, dtype=float), wp.zeros(N, dtype=wp.vec3), wp.zeros(N, dtype=wp.vec3)]
+    outs = [wp.zeros(N, dtype=float), wp.zeros(N, dtype=float)] + [wp.zeros(N, dtype=wp.vec3) for _ in range(3)]
     wp.launch(eval_terms, dim=N, inputs=[dev[k] for k in arrays] + outs)
     # the reference sees exactly the float32 inputs the kernel saw
     inputs = {k: a.astype(np.float32).astype(np.float64) for k, a in arrays.items()}
@@ -72,31 +76,85 @@ def rel_err(got, want):
 
 
 def test_d_ggx_matches_reference(evaluated):
-    x, (d, _, _, _) = evaluated
+    x, (d, _, _, _, _) = evaluated
     want = ref.d_ggx(x["n_dot_h"], x["roughness"] ** 2)
     assert rel_err(d, want) <= 1e-5
 
 
 def test_visibility_smith_schlick_ggx_matches_reference(evaluated):
     """V = G / (4 n.l n.v), the reference computing G and dividing."""
-    x, (_, g, _, _) = evaluated
+    x, (_, g, _, _, _) = evaluated
     nv, nl = np.sum(x["n"] * x["v"], -1), np.sum(x["n"] * x["l"], -1)
     want = ref.g_schlick_ggx(nv, nl, x["roughness"]) / (4 * nl * nv)
     assert rel_err(g, want) <= 1e-5
 
 
 def test_f_schlick_matches_reference(evaluated):
-    x, (_, _, f, _) = evaluated
+    x, (_, _, f, _, _) = evaluated
     h = ref.normalize(x["v"] + x["l"])
     m, s = x["metallic"][:, None], x["specular"][:, None]
     want = ref.f_schlick((1 - m) * 0.04 * s + m * x["base"], (1 - m) * s + m, np.sum(x["v"] * h, -1))
     assert rel_err(f, want) <= 1e-5
 
 
-def test_whole_brdf_matches_reference(evaluated):
-    x, (_, _, _, f) = evaluated
+def test_whole_seeds_brdf_matches_reference(evaluated):
+    """The seeds' model exactly: Lambert weighted by 1 - F(v.h)."""
+    x, (_, _, _, _, f) = evaluated
     want = ref.brdf(x["n"], x["v"], x["l"], x["base"], x["metallic"], x["roughness"], x["specular"])
     assert rel_err(f, want) <= 1e-5
+
+
+def table_share(tables):
+    """The albedo coupling (1 - E(v))(1 - E(l)) / (1 - E_avg) in float64, E = f0 (E1 - Ew) + f90 Ew
+    read from ``tables`` (rows n.v = (i + 0.5) / size, bilinear, clamped at the edges)."""
+    size = tables.size
+    albedo = np.array(tables.albedo).reshape(size, size, 2)
+    means = np.array(tables.averages).reshape(4, size)
+
+    def bilinear(grid, x, y):
+        x = np.clip(x, 0, grid.shape[0] - 1)
+        y = np.clip(y, 0, grid.shape[1] - 1)
+        i, j = np.minimum(x.astype(int), grid.shape[0] - 2), np.minimum(y.astype(int), grid.shape[1] - 2)
+        fx, fy = (x - i)[:, None], (y - j)[:, None]
+        return ((grid[i, j] * (1 - fx) + grid[i + 1, j] * fx) * (1 - fy)
+                + (grid[i, j + 1] * (1 - fx) + grid[i + 1, j + 1] * fx) * fy)
+
+    def lobe(f0, f90, mu, roughness):
+        e = bilinear(albedo, mu * size - 0.5, roughness * (size - 1))
+        return f0 * (e[:, :1] - e[:, 1:]) + f90 * e[:, 1:]
+
+    def share(f0, f90, nv, nl, roughness):
+        m = bilinear(means.T[None].repeat(2, 0), np.zeros_like(roughness), roughness * (size - 1))
+        rest = 1 - (f0 * m[:, :1] + f90 * m[:, 1:2])
+        return (1 - lobe(f0, f90, np.maximum(nv, 1e-4), roughness)) * (1 - lobe(f0, f90, nl, roughness)) / rest
+
+    return share
+
+
+def test_whole_brdf_matches_reference(evaluated):
+    """The default model: the seeds' terms with the albedo coupling of the diffuse lobe."""
+    from pbrwarp.kernels.energy import albedo_tables
+
+    x, (_, _, _, f, _) = evaluated
+    share = table_share(albedo_tables("ggx", "schlick_ggx", "schlick"))
+    want = ref.brdf(x["n"], x["v"], x["l"], x["base"], x["metallic"], x["roughness"], x["specular"], share)
+    assert rel_err(f, want) <= 1e-5
+
+
+@pytest.mark.parametrize("roughness", [0.0, 1 / 31, 0.5, 1.0])
+def test_albedo_table_matches_float64_integration(roughness):
+    """The Warp-integrated table of E1 and Ew (8192 Hammersley samples per cell) against float64 Monte Carlo
+    of the formulas, at table nodes from head-on to grazing."""
+    from pbrwarp.kernels.energy import albedo_tables
+
+    tables = albedo_tables("ggx", "schlick_ggx", "schlick")
+    size = tables.size
+    albedo = np.array(tables.albedo).reshape(size, size, 2)
+    column = round(roughness * (size - 1))
+    for row in (0, 3, size // 2, size - 1):
+        e1, ew, err1, errw = ref.ggx_lobe_albedo((row + 0.5) / size, column / (size - 1))
+        assert abs(albedo[row, column, 0] - e1) <= 4 * err1 + 0.002 * e1, (row, albedo[row, column], e1)
+        assert abs(albedo[row, column, 1] - ew) <= 4 * errw + 0.002 * e1, (row, albedo[row, column], ew)
 
 
 def test_specular_zero_is_pure_lambert(evaluated):
@@ -106,7 +164,7 @@ def test_specular_zero_is_pure_lambert(evaluated):
     dev = [wp.array(x[key].astype(np.float32), dtype=wp.vec3) for key in ("n", "v", "l", "base")]
     dev += [wp.array(np.zeros(k, np.float32)), wp.array(x["roughness"].astype(np.float32)), wp.array(np.zeros(k, np.float32))]
     dev += [wp.array(x["n_dot_h"].astype(np.float32)), wp.array(x["sin_sq"].astype(np.float32))]
-    outs = [wp.zeros(k, dtype=float), wp.zeros(k, dtype=float), wp.zeros(k, dtype=wp.vec3), wp.zeros(k, dtype=wp.vec3)]
+    outs = [wp.zeros(k, dtype=float), wp.zeros(k, dtype=float)] + [wp.zeros(k, dtype=wp.vec3) for _ in range(3)]
     wp.launch(eval_terms, dim=k, inputs=dev + outs)
     want = x["base"] / np.pi
     assert rel_err(outs[3].numpy().astype(np.float64), want) <= 1e-6
@@ -117,10 +175,10 @@ def test_light_below_surface_gives_zero():
     n = wp.array([[0, 0, 1]], dtype=wp.vec3)
     v = wp.array([[0, 0.6, 0.8]], dtype=wp.vec3)
     l = wp.array([[0, 0.6, -0.8]], dtype=wp.vec3)
-    outs = [wp.zeros(1, dtype=float), wp.zeros(1, dtype=float), wp.zeros(1, dtype=wp.vec3), wp.zeros(1, dtype=wp.vec3)]
+    outs = [wp.zeros(1, dtype=float), wp.zeros(1, dtype=float)] + [wp.zeros(1, dtype=wp.vec3) for _ in range(3)]
     one = wp.array([0.5], dtype=float)
     wp.launch(eval_terms, dim=1, inputs=[n, v, l, wp.array([[1, 1, 1]], dtype=wp.vec3), one, one, one, one, one] + outs)
-    assert np.all(outs[3].numpy() == 0.0)
+    assert np.all(outs[3].numpy() == 0.0) and np.all(outs[4].numpy() == 0.0)
 
 
 def test_d_ggx_low_roughness_and_peak():
@@ -132,7 +190,7 @@ def test_d_ggx_low_roughness_and_peak():
     nh, s2 = np.cos(t), np.sin(t) ** 2
     dummy3 = wp.zeros(k, dtype=wp.vec3)
     dummy = wp.zeros(k, dtype=float)
-    outs = [wp.zeros(k, dtype=float), wp.zeros(k, dtype=float), wp.zeros(k, dtype=wp.vec3), wp.zeros(k, dtype=wp.vec3)]
+    outs = [wp.zeros(k, dtype=float), wp.zeros(k, dtype=float)] + [wp.zeros(k, dtype=wp.vec3) for _ in range(3)]
     wp.launch(eval_terms, dim=k, inputs=[dummy3, dummy3, dummy3, dummy3, dummy, wp.array(r.astype(np.float32)),
                                          dummy, wp.array(nh.astype(np.float32)), wp.array(s2.astype(np.float32))] + outs)
     r32 = r.astype(np.float32).astype(np.float64)

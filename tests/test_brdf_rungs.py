@@ -171,22 +171,26 @@ def test_every_rung_combination_renders_finite(rungs):
         scene.add_mesh(trimesh.creation.icosphere(subdivisions=2), pw.Material(base_color=(0.9, 0.6, 0.2), metallic=m, roughness=r),
                        transform=np.diag([1.0, 1.0, 1.0, 1.0]) + np.pad(np.array([[0, 0, 0, 2.5 * (i - 1)]]), ((0, 3), (0, 0))))
     scene.add_light(pw.PointLight(position=(2, 3, 4), intensity=40.0))
-    brdf = pw.BRDF(diffuse=diffuse, distribution=distribution, geometry=geometry, fresnel=fresnel_model)
+    coupling = ("albedo", "fresnel", "none")[len(fresnel_model) % 3]
+    brdf = pw.BRDF(diffuse=diffuse, distribution=distribution, geometry=geometry, fresnel=fresnel_model, coupling=coupling)
     frame = render_checked(scene, pw.Camera.look_at(eye=(0, 0, 8), target=(0, 0, 0)), size=(48, 24), brdf=brdf)
     assert frame.rgb.max() > 0
     text = pw.explain(scene, brdf=brdf)
     assert f"{diffuse} diffuse" in text and f"{geometry} geometry" in text and f"{fresnel_model} Fresnel" in text
+    assert f"{coupling} coupling" in text
 
 
-def test_default_brdf_is_the_seeds_model():
-    assert pw.BRDF() == pw.BRDF(diffuse="lambert", distribution="ggx", geometry="schlick_ggx", fresnel="schlick", energy="single")
+def test_default_brdf_is_the_seeds_terms_with_the_energy_conserving_coupling():
+    assert pw.BRDF() == pw.BRDF(diffuse="lambert", distribution="ggx", geometry="schlick_ggx", fresnel="schlick", energy="single",
+                                coupling="albedo")
 
 
 def test_presets_select_the_documented_rungs():
     from pbrwarp.brdf import PRESETS
 
     assert PRESETS["balanced"] == pw.BRDF()
-    assert PRESETS["fast"] == pw.BRDF(distribution="blinn_phong", geometry="implicit", fresnel="spherical_gaussian")
+    assert PRESETS["fast"] == pw.BRDF(distribution="blinn_phong", geometry="implicit", fresnel="spherical_gaussian",
+                                      coupling="fresnel")
     assert PRESETS["accurate"] == pw.BRDF(diffuse="burley", geometry="smith_correlated")
     assert PRESETS["reference"] == pw.BRDF(diffuse="burley", geometry="smith_correlated", fresnel="exact", energy="multiscatter")
     import trimesh

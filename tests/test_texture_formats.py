@@ -180,13 +180,13 @@ def white_lambert(**textures):
     return pw.Material(base_color=(1, 1, 1), roughness=1, specular=0, **textures)
 
 
-def render_head_on(material, uvs=None, size=9):
+def render_head_on(material, uvs=None, size=9, brdf=None):
     """The quad filling the view, lit head-on by LUX lux; spp = 1 so pixel centres are sampled."""
     scene = pw.Scene()
     scene.add_mesh(textured_quad(material, uvs, size=4.0))
     scene.add_light(pw.DirectionalLight(direction=(0, 0, -1), intensity=LUX))
     cam = pw.Camera.look_at(eye=(0, 0, 3), target=(0, 0, 0), up=(0, 1, 0), fov_y=30.0)
-    frame = pw.render(scene, cam, width=size, height=size, spp=1, progress=False)
+    frame = pw.render(scene, cam, width=size, height=size, spp=1, progress=False, brdf=brdf)
     report = pw.check(frame)
     assert report.ok, report
     assert frame.alpha.min() == 1.0
@@ -271,8 +271,8 @@ def test_colour_slots_decode_srgb_and_data_slots_do_not():
 
 
 def head_on_radiance(metallic, roughness=1.0, specular=0.0):
-    """Radiance / E of a white surface seen and lit head-on (n = v = l = h), from the BRDF the
-    README states: f0 = mix(0.04 specular, 1, m), F = f0 at v.h = 1; diffuse (1 - F)(1 - m) / pi;
+    """Radiance / E of a white surface seen and lit head-on (n = v = l = h), from the seeds' BRDF
+    (rendered with coupling="fresnel"): f0 = mix(0.04 specular, 1, m), F = f0 at v.h = 1; diffuse (1 - F)(1 - m) / pi;
     GGX D = 1 / (pi alpha^2) at n.h = 1 with alpha = roughness^2; Smith G = 1 at n.v = n.l = 1."""
     f0 = 0.04 * specular * (1 - metallic) + metallic
     alpha2 = max(roughness**4, 1e-7)
@@ -287,7 +287,7 @@ def test_metallic_roughness_texture_is_read_linear_in_the_render():
     texture[..., 2] = 128  # metallic
     material = pw.Material(base_color=(1, 1, 1), metallic=1.0, roughness=1.0, specular=0.0,
                            metallic_roughness_texture=texture)
-    frame = render_head_on(material)
+    frame = render_head_on(material, brdf=pw.BRDF(coupling="fresnel"))
     linear, srgb = head_on_radiance(128 / 255), head_on_radiance(float(srgb_eotf(128 / 255)))
     assert abs(linear - srgb) > 0.5 * linear
     np.testing.assert_allclose(frame.rgb[4, 4], LUX * linear, rtol=1e-4)
