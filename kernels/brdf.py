@@ -377,6 +377,3 @@ def _no_lookup():
 
     return lookup, averages
 
-
-# The seeds' model, every lobe compiled in.
-brdf_cook_torrance = brdf_for(True, True)

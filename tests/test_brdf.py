@@ -11,6 +11,10 @@ import reference as ref
 N = 4096
 
 
+# the default model, every lobe compiled in
+default_brdf = kb.brdf_for(True, True)
+
+
 seeds_brdf = kb.brdf_for(True, True, coupling="fresnel")
 
 
@@ -29,7 +33,7 @@ def eval_terms(
     out_g[i] = kb.V_SmithSchlickGGX(wp.dot(n[i], v[i]), wp.dot(n[i], l[i]), r)
     f0 = kb.specular_f0(base[i], metallic[i], specular[i])
     out_f[i] = kb.F_Schlick(f0, kb.specular_f90(metallic[i], specular[i]), wp.dot(v[i], h))
-    out_brdf[i] = kb.brdf_cook_torrance(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
+    out_brdf[i] = default_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
     out_seeds[i] = seeds_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
 
 

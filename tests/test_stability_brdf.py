@@ -25,12 +25,16 @@ ROUGHNESS_GRID = [0.0, 1e-8, 1e-4, MIN_ROUGHNESS, 0.045, 0.5, 1.0]
 COSINE_GRID = [1.0, 0.5, 1e-3, 1e-6, 0.0, -1e-3]
 
 
+# the default model, every lobe compiled in
+default_brdf = kb.brdf_for(True, True)
+
+
 @wp.kernel(enable_backward=False)
 def eval_brdf(n: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), l: wp.array(dtype=wp.vec3),
               base: wp.array(dtype=wp.vec3), metallic: wp.array(dtype=float), roughness: wp.array(dtype=float),
               specular: wp.array(dtype=float), out: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    out[i] = kb.brdf_cook_torrance(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
+    out[i] = default_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
 
 
 def brdf(n, v, l, base, metallic, roughness, specular):
