@@ -1,0 +1,507 @@
+"""Primary visibility by rasterization: per sample, the nearest triangle and its depth.
+
+The visibility buffer holds one uint64 per sample, (float32 bits of depth) << 32 | triangle id,
+so that an unsigned minimum keeps the nearest triangle (the lower id on an exact depth tie) and
+NO_TRIANGLE (all ones) means nothing was hit. Depth is camera-space z, the coefficient of
+``cam.forward`` in (point - eye): monotone along every camera ray, which is all a per-sample
+comparison needs.
+
+Coverage is decided in exact int64 arithmetic on vertices and samples snapped to 1/4096 pixel, with
+a tie-breaking rule on edges, so a sample on an edge shared by two triangles is covered exactly
+once. Triangles that reach behind the camera or outside the guard band are not projected: every
+sample in a conservative screen rectangle is tested with the ray-triangle intersection Warp's
+``mesh_query_ray`` uses (``ray_triangle_intersection``), which a shading kernel can also call
+to recompute the hit of the triangle this buffer names.
+
+pbrwarp/raster.py runs the stages: sample positions, projected vertices, per-triangle screen
+rectangles binned into tiles, then rasterization, one launch per group of tiles.
+"""
+
+import warp as wp
+
+from .camera import CameraData, camera_ray_direction
+from .sampling import multi_jittered_sample
+
+wp.set_module_options({"enable_backward": False})
+
+NO_TRIANGLE = wp.constant(wp.uint64(0xFFFFFFFFFFFFFFFF))
+TRIANGLE_MASK = wp.constant(wp.uint64(0xFFFFFFFF))
+DEPTH_SHIFT = wp.constant(wp.uint64(32))
+
+# Vertices and samples are snapped to 1/4096 pixel: far below what the float32 ray caster
+# resolves, and coarse enough that edge functions fit int64 (see GUARD_BAND).
+SUBPIXEL_BITS = wp.constant(wp.int64(12))
+SUBPIXEL_SCALE = wp.constant(wp.float64(4096.0))
+# Largest |screen coordinate| in pixels a projected vertex may have. Snapped coordinates are then
+# below 2^29 and samples (images up to MAX_IMAGE_SIZE) below 2^28, so an edge function
+# A X + B Y + C stays below 2^61 and is computed exactly.
+GUARD_BAND = wp.constant(wp.float64(131072.0))
+MAX_IMAGE_SIZE = 65536
+# Screen tiles are TILE_SIZE x TILE_SIZE pixels; each is rasterized by one thread, alone.
+TILE_SIZE = wp.constant(32)
+
+# The third component of a projected vertex: 1/z when it is projected, else one of these.
+BEHIND_CAMERA = wp.constant(wp.float64(-1.0))
+OUTSIDE_GUARD_BAND = wp.constant(wp.float64(0.0))
+# Relative size below which a direction component may have the wrong sign after rounding.
+DIRECTION_TOLERANCE = wp.constant(wp.float64(1.0e-12))
+
+
+@wp.struct
+class Projection:
+    """World to screen: camera coordinates (a, b, z) with point - eye = a right + b up + z forward
+    (CameraData's scaled axes), then pixel coordinates ((a/z + 1) w/2, (1 - b/z) h/2), the inverse
+    of camera_ray_direction."""
+
+    eye: wp.vec3d
+    to_camera: wp.mat33d
+    half_width: wp.float64
+    half_height: wp.float64
+    width: int
+    height: int
+
+
+@wp.func_native("wp::uint32 bits; memcpy(&bits, &x, sizeof(bits)); return bits;")
+def float_bits(x: float) -> wp.uint32: ...
+
+
+@wp.func_native("return fmaf(a, b, c);")
+def fused_multiply_add(a: float, b: float, c: float) -> float: ...
+
+
+@wp.func
+def visibility_entry(depth: float, triangle: int) -> wp.uint64:
+    """The buffer entry of a hit; smaller entries are nearer (depth >= 0)."""
+    return (wp.uint64(float_bits(depth)) << DEPTH_SHIFT) | wp.uint64(triangle)
+
+
+@wp.func
+def visible_triangle(entry: wp.uint64) -> int:
+    """The triangle id of a buffer entry, -1 for NO_TRIANGLE."""
+    if entry == NO_TRIANGLE:
+        return -1
+    return int(entry & TRIANGLE_MASK)
+
+
+@wp.func
+def difference_of_products(a: float, b: float, c: float, d: float) -> float:
+    """a b - c d with the rounding of c d compensated (Kahan), as Warp's diff_product."""
+    cd = c * d
+    return fused_multiply_add(a, b, -cd) + fused_multiply_add(-c, d, cd)
+
+
+@wp.func
+def longest_axis(v: wp.vec3) -> int:
+    """Index of the largest |component|, the first on ties (Warp's max_dim)."""
+    axis = int(0)
+    largest = wp.abs(v[0])
+    if wp.abs(v[1]) > largest:
+        axis = 1
+        largest = wp.abs(v[1])
+    if wp.abs(v[2]) > largest:
+        axis = 2
+    return axis
+
+
+@wp.func
+def ray_triangle_intersection(origin: wp.vec3, direction: wp.vec3, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3):
+    """Watertight ray-triangle test (Woop, Benthin and Wald 2013), step for step Warp's
+    intersect_ray_tri_woop (warp/native/intersect.h), which ``wp.mesh_query_ray`` runs.
+
+    Returns (hit, t, u, v): the point origin + t direction = p0 u + p1 v + p2 (1 - u - v), Warp's
+    barycentric convention. hit is False when the ray misses or t < 0; t, u, v are then those of
+    the ray's intersection with the triangle's plane (extrapolated barycentrics), or all 0 when the
+    ray is parallel to the plane.
+    """
+    kz = longest_axis(direction)
+    kx = (kz + 1) % 3
+    ky = (kx + 1) % 3
+    # keep the winding of the sheared triangle
+    if direction[kz] < 0.0:
+        swap = kx
+        kx = ky
+        ky = swap
+    shear_x = direction[kx] / direction[kz]
+    shear_y = direction[ky] / direction[kz]
+    shear_z = 1.0 / direction[kz]
+    a = p0 - origin
+    b = p1 - origin
+    c = p2 - origin
+    ax = a[kx] - shear_x * a[kz]
+    ay = a[ky] - shear_y * a[kz]
+    bx = b[kx] - shear_x * b[kz]
+    by = b[ky] - shear_y * b[kz]
+    cx = c[kx] - shear_x * c[kz]
+    cy = c[ky] - shear_y * c[kz]
+    eu = difference_of_products(cx, by, cy, bx)
+    ev = difference_of_products(ax, cy, ay, cx)
+    ew = difference_of_products(bx, ay, by, ax)
+    # an edge through the ray: decide its sign in double precision, so neighbours agree
+    if eu == 0.0 or ev == 0.0 or ew == 0.0:
+        eu = float(wp.float64(cx) * wp.float64(by) - wp.float64(cy) * wp.float64(bx))
+        ev = float(wp.float64(ax) * wp.float64(cy) - wp.float64(ay) * wp.float64(cx))
+        ew = float(wp.float64(bx) * wp.float64(ay) - wp.float64(by) * wp.float64(ax))
+    inside = not ((eu < 0.0 or ev < 0.0 or ew < 0.0) and (eu > 0.0 or ev > 0.0 or ew > 0.0))
+    det = eu + ev + ew
+    if det == 0.0:
+        return False, 0.0, 0.0, 0.0
+    scaled_t = eu * (shear_z * a[kz]) + ev * (shear_z * b[kz]) + ew * (shear_z * c[kz])
+    behind = (det > 0.0 and scaled_t < 0.0) or (det < 0.0 and scaled_t > 0.0)
+    inv_det = 1.0 / det
+    return inside and not behind, scaled_t * inv_det, eu * inv_det, ev * inv_det
+
+
+# ---------------------------------------------------------------------- sample positions
+@wp.kernel
+def sample_positions(spp: int, grid_m: int, grid_n: int, seed: int, width: int, first_row: int,
+                     out: wp.array2d(dtype=wp.vec2)):
+    """Image position (pixels, (0, 0) the top-left corner) of every sample of rows first_row...,
+    computed exactly as the ray caster's render_tile computes its rays' (x, y)."""
+    i = wp.tid()
+    s = i % spp
+    px = (i / spp) % width
+    py = first_row + i / (spp * width)
+    offset = wp.vec2(0.5, 0.5)
+    if spp > 1:
+        offset = multi_jittered_sample(s, grid_m, grid_n, seed + py * width + px)
+    out[py, px * spp + s] = wp.vec2(float(px) + offset[0], float(py) + offset[1])
+
+
+@wp.func
+def snap(x: float) -> wp.int64:
+    """A sample coordinate (>= 0) in fixed point."""
+    return wp.int64(wp.float64(x) * SUBPIXEL_SCALE + wp.float64(0.5))
+
+
+# ---------------------------------------------------------------------- vertices
+@wp.func
+def camera_coordinates(proj: Projection, p: wp.vec3) -> wp.vec3d:
+    return proj.to_camera * (wp.vec3d(wp.float64(p[0]), wp.float64(p[1]), wp.float64(p[2])) - proj.eye)
+
+
+@wp.func
+def screen_x(proj: Projection, c: wp.vec3d) -> wp.float64:
+    return (c[0] / c[2] + wp.float64(1.0)) * proj.half_width
+
+
+@wp.func
+def screen_y(proj: Projection, c: wp.vec3d) -> wp.float64:
+    return (wp.float64(1.0) - c[1] / c[2]) * proj.half_height
+
+
+@wp.kernel
+def project_vertices(positions: wp.array(dtype=wp.vec3), proj: Projection, first: int,
+                     out: wp.array(dtype=wp.vec3d)):
+    """(snapped x, snapped y, 1/z) of each vertex, or a BEHIND_CAMERA / OUTSIDE_GUARD_BAND code."""
+    i = first + wp.tid()
+    c = camera_coordinates(proj, positions[i])
+    if c[2] <= wp.float64(0.0):
+        out[i] = wp.vec3d(wp.float64(0.0), wp.float64(0.0), BEHIND_CAMERA)
+        return
+    x = screen_x(proj, c)
+    y = screen_y(proj, c)
+    if wp.abs(x) <= GUARD_BAND and wp.abs(y) <= GUARD_BAND:
+        out[i] = wp.vec3d(wp.round(x * SUBPIXEL_SCALE), wp.round(y * SUBPIXEL_SCALE), wp.float64(1.0) / c[2])
+    else:
+        out[i] = wp.vec3d(wp.float64(0.0), wp.float64(0.0), OUTSIDE_GUARD_BAND)
+
+
+@wp.func
+def is_projected(q: wp.vec3d) -> bool:
+    return q[2] > wp.float64(0.0)
+
+
+# ---------------------------------------------------------------------- screen rectangles
+@wp.func
+def empty_rect() -> wp.vec4i:
+    return wp.vec4i(0, 0, -1, -1)
+
+
+@wp.func
+def clamped_rect(x0: int, y0: int, x1: int, y1: int, width: int, height: int) -> wp.vec4i:
+    """Pixels [x0, x1] x [y0, y1] (inclusive) inside the image; empty_rect() if none."""
+    r = wp.vec4i(wp.max(x0, 0), wp.max(y0, 0), wp.min(x1, width - 1), wp.min(y1, height - 1))
+    if r[0] > r[2] or r[1] > r[3]:
+        return empty_rect()
+    return r
+
+
+@wp.func
+def fixed_point_pixel_range(lo: wp.int64, hi: wp.int64) -> wp.vec2i:
+    """Pixels whose samples can lie in [lo, hi] (fixed point). A sample of pixel p lies in [p, p + 1]:
+    float32 p + offset may round up to p + 1."""
+    return wp.vec2i(int((lo - wp.int64(1)) >> SUBPIXEL_BITS), int(hi >> SUBPIXEL_BITS))
+
+
+@wp.func
+def projected_rect(q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, width: int, height: int) -> wp.vec4i:
+    """Pixels a projected triangle may cover; empty for a zero-area (degenerate) one."""
+    x0 = wp.int64(q0[0])
+    y0 = wp.int64(q0[1])
+    x1 = wp.int64(q1[0])
+    y1 = wp.int64(q1[1])
+    x2 = wp.int64(q2[0])
+    y2 = wp.int64(q2[1])
+    if (x1 - x0) * (y2 - y0) == (y1 - y0) * (x2 - x0):
+        return empty_rect()
+    xs = fixed_point_pixel_range(wp.min(x0, wp.min(x1, x2)), wp.max(x0, wp.max(x1, x2)))
+    ys = fixed_point_pixel_range(wp.min(y0, wp.min(y1, y2)), wp.max(y0, wp.max(y1, y2)))
+    return clamped_rect(xs[0], ys[0], xs[1], ys[1], width, height)
+
+
+@wp.func
+def include_point(bounds: wp.vec4d, x: wp.float64, y: wp.float64) -> wp.vec4d:
+    """bounds = (min x, min y, max x, max y) grown to hold (x, y)."""
+    return wp.vec4d(wp.min(bounds[0], x), wp.min(bounds[1], y), wp.max(bounds[2], x), wp.max(bounds[3], y))
+
+
+@wp.func
+def include_direction(bounds: wp.vec4d, a: wp.float64, b: wp.float64, tolerance: wp.float64) -> wp.vec4d:
+    """bounds grown by the projection of points approaching the camera plane z = 0 in camera
+    direction (a, b): they run off to infinity along it (screen y grows as b falls)."""
+    far = wp.float64(wp.inf)
+    r = bounds
+    if a > -tolerance:
+        r[2] = far
+    if a < tolerance:
+        r[0] = -far
+    if b > -tolerance:
+        r[1] = -far
+    if b < tolerance:
+        r[3] = far
+    return r
+
+
+@wp.func
+def include_clipped_edge(bounds: wp.vec4d, front: wp.vec3d, back: wp.vec3d) -> wp.vec4d:
+    """bounds grown by edge (front, back), front.z > 0 >= back.z, where it reaches z = 0."""
+    s = front[2] / (front[2] - back[2])
+    a = front[0] + s * (back[0] - front[0])
+    b = front[1] + s * (back[1] - front[1])
+    scale = wp.max(wp.abs(front[0]), wp.max(wp.abs(front[1]), wp.abs(front[2])))
+    scale = wp.max(scale, wp.max(wp.abs(back[0]), wp.max(wp.abs(back[1]), wp.abs(back[2]))))
+    return include_direction(bounds, a, b, DIRECTION_TOLERANCE * scale)
+
+
+@wp.func
+def include_vertex_and_edge(bounds: wp.vec4d, proj: Projection, c: wp.vec3d, next_c: wp.vec3d) -> wp.vec4d:
+    r = bounds
+    zero = wp.float64(0.0)
+    if c[2] > zero:
+        r = include_point(r, screen_x(proj, c), screen_y(proj, c))
+        if next_c[2] <= zero:
+            r = include_clipped_edge(r, c, next_c)
+    elif next_c[2] > zero:
+        r = include_clipped_edge(r, next_c, c)
+    return r
+
+
+@wp.func
+def clipped_rect(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -> wp.vec4i:
+    """Pixels the part in front of the camera (z > 0) of a triangle may cover, conservatively.
+
+    That part projects to a convex region: the hull of its vertices' projections and, where it
+    reaches the camera plane, of the directions it runs off to infinity in.
+    """
+    c0 = camera_coordinates(proj, p0)
+    c1 = camera_coordinates(proj, p1)
+    c2 = camera_coordinates(proj, p2)
+    far = wp.float64(wp.inf)
+    bounds = wp.vec4d(far, far, -far, -far)
+    bounds = include_vertex_and_edge(bounds, proj, c0, c1)
+    bounds = include_vertex_and_edge(bounds, proj, c1, c2)
+    bounds = include_vertex_and_edge(bounds, proj, c2, c0)
+    if not (bounds[0] <= bounds[2]):
+        return empty_rect()
+    # a pixel of margin for the rounding of the projection; clamped before the conversion to int
+    w = wp.float64(proj.width)
+    h = wp.float64(proj.height)
+    x0 = int(wp.floor(wp.clamp(bounds[0], wp.float64(-2.0), w + wp.float64(2.0)))) - 1
+    x1 = int(wp.floor(wp.clamp(bounds[2], wp.float64(-2.0), w + wp.float64(2.0)))) + 1
+    y0 = int(wp.floor(wp.clamp(bounds[1], wp.float64(-2.0), h + wp.float64(2.0)))) - 1
+    y1 = int(wp.floor(wp.clamp(bounds[3], wp.float64(-2.0), h + wp.float64(2.0)))) + 1
+    return clamped_rect(x0, y0, x1, y1, proj.width, proj.height)
+
+
+@wp.func
+def triangle_rect(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
+                  projected: wp.array(dtype=wp.vec3d), proj: Projection, face: int) -> wp.vec4i:
+    i0 = indices[3 * face]
+    i1 = indices[3 * face + 1]
+    i2 = indices[3 * face + 2]
+    q0 = projected[i0]
+    q1 = projected[i1]
+    q2 = projected[i2]
+    if is_projected(q0) and is_projected(q1) and is_projected(q2):
+        return projected_rect(q0, q1, q2, proj.width, proj.height)
+    if q0[2] == BEHIND_CAMERA and q1[2] == BEHIND_CAMERA and q2[2] == BEHIND_CAMERA:
+        return empty_rect()
+    return clipped_rect(proj, positions[i0], positions[i1], positions[i2])
+
+
+# ---------------------------------------------------------------------- binning
+@wp.kernel
+def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
+                projected: wp.array(dtype=wp.vec3d), proj: Projection, first: int, chunk: int,
+                tiles_x: int, rects: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32)):
+    """Screen rectangle of each triangle of a chunk, and per tile how many of them touch it.
+    Only this chunk's launch writes row ``chunk`` of tile_counts."""
+    face = first + wp.tid()
+    r = triangle_rect(positions, indices, projected, proj, face)
+    rects[face] = r
+    if r[0] > r[2]:
+        return
+    for ty in range(r[1] / TILE_SIZE, r[3] / TILE_SIZE + 1):
+        for tx in range(r[0] / TILE_SIZE, r[2] / TILE_SIZE + 1):
+            tile = ty * tiles_x + tx
+            tile_counts[chunk, tile] = tile_counts[chunk, tile] + 1
+
+
+@wp.kernel
+def fill_bins(rects: wp.array(dtype=wp.vec4i), first: int, chunk: int, tiles_x: int,
+              cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32)):
+    """Append each triangle of a chunk to the bin of every tile its rectangle touches, at this
+    chunk's cursor in that bin."""
+    face = first + wp.tid()
+    r = rects[face]
+    if r[0] > r[2]:
+        return
+    for ty in range(r[1] / TILE_SIZE, r[3] / TILE_SIZE + 1):
+        for tx in range(r[0] / TILE_SIZE, r[2] / TILE_SIZE + 1):
+            tile = ty * tiles_x + tx
+            slot = cursors[chunk, tile]
+            bins[slot] = face
+            cursors[chunk, tile] = slot + 1
+
+
+# ---------------------------------------------------------------------- rasterization
+@wp.func
+def owns_boundary(a: wp.int64, b: wp.int64) -> bool:
+    """Whether samples exactly on the edge with function a x + b y + c belong to its triangle.
+    Equivalent to testing the sample moved by (eps, eps^2): the reversed edge (-a, -b), the same
+    edge seen from the neighbouring triangle, gets the opposite answer, and at a shared vertex
+    exactly one triangle of a fan wins."""
+    return a > wp.int64(0) or (a == wp.int64(0) and b > wp.int64(0))
+
+
+@wp.func
+def keep_nearest(out: wp.array2d(dtype=wp.uint64), row: int, col: int, entry: wp.uint64):
+    if entry < out[row, col]:
+        out[row, col] = entry
+
+
+@wp.func
+def rasterize_triangle(face: int, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, rect: wp.vec4i,
+                       samples: wp.array2d(dtype=wp.vec2), spp: int, out: wp.array2d(dtype=wp.uint64)):
+    """Edge-function coverage of the samples of ``rect`` by a projected triangle, exact in int64;
+    depth from 1/z interpolated linearly in screen space (perspective-correct)."""
+    x0 = wp.int64(q0[0])
+    y0 = wp.int64(q0[1])
+    x1 = wp.int64(q1[0])
+    y1 = wp.int64(q1[1])
+    x2 = wp.int64(q2[0])
+    y2 = wp.int64(q2[1])
+    # edge i runs between the other two vertices; e_i(x, y) = a_i x + b_i y + c_i
+    a0 = y1 - y2
+    b0 = x2 - x1
+    c0 = x1 * y2 - x2 * y1
+    a1 = y2 - y0
+    b1 = x0 - x2
+    c1 = x2 * y0 - x0 * y2
+    a2 = y0 - y1
+    b2 = x1 - x0
+    c2 = x0 * y1 - x1 * y0
+    area = a0 * x0 + b0 * y0 + c0
+    if area == wp.int64(0):
+        return
+    # either winding: flip clockwise triangles so inside is e_i > 0 (both facings are drawn)
+    if area < wp.int64(0):
+        a0 = -a0
+        b0 = -b0
+        c0 = -c0
+        a1 = -a1
+        b1 = -b1
+        c1 = -c1
+        a2 = -a2
+        b2 = -b2
+        c2 = -c2
+        area = -area
+    # e_i + bias_i >= 0 <=> e_i > 0, or e_i == 0 on an owned edge
+    bias0 = wp.int64(0)
+    bias1 = wp.int64(0)
+    bias2 = wp.int64(0)
+    if not owns_boundary(a0, b0):
+        bias0 = wp.int64(-1)
+    if not owns_boundary(a1, b1):
+        bias1 = wp.int64(-1)
+    if not owns_boundary(a2, b2):
+        bias2 = wp.int64(-1)
+    c0 = c0 + bias0
+    c1 = c1 + bias1
+    c2 = c2 + bias2
+    # 1/z = sum_i e_i 1/z_i / area, with the biases taken back out
+    inv_area = wp.float64(1.0) / wp.float64(area)
+    k0 = q0[2] * inv_area
+    k1 = q1[2] * inv_area
+    k2 = q2[2] * inv_area
+    k_bias = -(wp.float64(bias0) * k0 + wp.float64(bias1) * k1 + wp.float64(bias2) * k2)
+    for py in range(rect[1], rect[3] + 1):
+        for col in range(rect[0] * spp, (rect[2] + 1) * spp):
+            p = samples[py, col]
+            sx = snap(p[0])
+            sy = snap(p[1])
+            e0 = a0 * sx + b0 * sy + c0
+            e1 = a1 * sx + b1 * sy + c1
+            e2 = a2 * sx + b2 * sy + c2
+            if (e0 | e1 | e2) >= wp.int64(0):
+                inv_z = k_bias + k0 * wp.float64(e0) + k1 * wp.float64(e1) + k2 * wp.float64(e2)
+                keep_nearest(out, py, col, visibility_entry(float(wp.float64(1.0) / inv_z), face))
+
+
+@wp.func
+def trace_triangle(face: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, rect: wp.vec4i,
+                   samples: wp.array2d(dtype=wp.vec2), spp: int, cam: CameraData, proj: Projection,
+                   out: wp.array2d(dtype=wp.uint64)):
+    """Coverage of the samples of ``rect`` by a triangle that cannot be projected, by casting each
+    sample's camera ray at it; depth is the hit's camera-space z."""
+    depth_row = wp.vec3d(proj.to_camera[2, 0], proj.to_camera[2, 1], proj.to_camera[2, 2])
+    for py in range(rect[1], rect[3] + 1):
+        for col in range(rect[0] * spp, (rect[2] + 1) * spp):
+            p = samples[py, col]
+            d = camera_ray_direction(cam, p[0], p[1])
+            hit, t, u, v = ray_triangle_intersection(cam.eye, d, p0, p1, p2)
+            if hit:
+                z = wp.float64(t) * wp.dot(depth_row, wp.vec3d(wp.float64(d[0]), wp.float64(d[1]), wp.float64(d[2])))
+                keep_nearest(out, py, col, visibility_entry(float(z), face))
+
+
+@wp.kernel
+def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
+                    projected: wp.array(dtype=wp.vec3d), rects: wp.array(dtype=wp.vec4i),
+                    bin_start: wp.array(dtype=wp.int32), bins: wp.array(dtype=wp.int32),
+                    samples: wp.array2d(dtype=wp.vec2), spp: int, cam: CameraData, proj: Projection,
+                    tiles_x: int, group: int, group_count: int, out: wp.array2d(dtype=wp.uint64)):
+    """Tiles group, group + group_count, ...: clear each, then draw every triangle of its bin
+    into it. A tile belongs to exactly one launch, so its samples need no atomics."""
+    tile = group + wp.tid() * group_count
+    tile_x0 = (tile % tiles_x) * TILE_SIZE
+    tile_y0 = (tile / tiles_x) * TILE_SIZE
+    tile_x1 = wp.min(tile_x0 + TILE_SIZE, proj.width) - 1
+    tile_y1 = wp.min(tile_y0 + TILE_SIZE, proj.height) - 1
+    for py in range(tile_y0, tile_y1 + 1):
+        for col in range(tile_x0 * spp, (tile_x1 + 1) * spp):
+            out[py, col] = NO_TRIANGLE
+    for k in range(bin_start[tile], bin_start[tile + 1]):
+        face = bins[k]
+        r = rects[face]
+        rect = wp.vec4i(wp.max(r[0], tile_x0), wp.max(r[1], tile_y0), wp.min(r[2], tile_x1), wp.min(r[3], tile_y1))
+        i0 = indices[3 * face]
+        i1 = indices[3 * face + 1]
+        i2 = indices[3 * face + 2]
+        q0 = projected[i0]
+        q1 = projected[i1]
+        q2 = projected[i2]
+        if is_projected(q0) and is_projected(q1) and is_projected(q2):
+            rasterize_triangle(face, q0, q1, q2, rect, samples, spp, out)
+        else:
+            trace_triangle(face, positions[i0], positions[i1], positions[i2], rect, samples, spp, cam, proj, out)

@@ -1,0 +1,224 @@
+"""Primary visibility by rasterization (kernels/raster.py), on every core.
+
+:func:`visibility_buffer` gives, per sample, the nearest triangle and its depth. Stages: sample
+positions (camera independent, cached), projected vertices, screen rectangles binned into
+TILE_SIZE tiles, then one launch per group of tiles from a thread pool (Warp CPU launches run on
+one thread and release the GIL). Triangles are split into one chunk per thread for projection
+and binning; each tile is rasterized by one launch only, so no sample is written concurrently and
+the buffer does not depend on the thread count.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import warp as wp
+
+from .errors import InputError, InputTypeError
+from pbrwarp.kernels import raster as rk
+from pbrwarp.kernels.camera import CameraData
+from pbrwarp.kernels.render import load_for_cpu
+
+NO_TRIANGLE = 0xFFFFFFFFFFFFFFFF
+TILE_SIZE = int(rk.TILE_SIZE)
+MAX_IMAGE_SIZE = rk.MAX_IMAGE_SIZE
+# Launches per thread for the tile groups: enough for the pool to even out unequal tiles.
+LAUNCHES_PER_THREAD = 4
+# Sample-position arrays kept for reuse (they depend on the image size, spp and seed only).
+CACHED_SAMPLE_LAYOUTS = 4
+
+KERNELS = (rk.sample_positions, rk.project_vertices, rk.count_tiles, rk.fill_bins, rk.rasterize_tiles)
+
+
+@functools.cache
+def _thread_pool(workers: int) -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pbrwarp-raster")
+
+
+def _run(fn, jobs, threads: int):
+    """fn(job) for every job, on ``threads`` pool threads (inline for one thread or one job)."""
+    if threads == 1 or len(jobs) == 1:
+        for job in jobs:
+            fn(job)
+    else:
+        list(_thread_pool(threads).map(fn, jobs))
+
+
+def _chunks(n: int, parts: int):
+    """(index, first, count) of up to ``parts`` contiguous non-empty ranges covering [0, n)."""
+    step = max(1, math.ceil(n / parts))
+    return [(k, first, min(step, n - first)) for k, first in enumerate(range(0, n, step))]
+
+
+def _load_kernels():
+    # compile or load every kernel once, before pool threads would each try at once
+    for kernel in KERNELS:
+        load_for_cpu(kernel)
+
+
+_sample_cache: dict = {}
+
+
+def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
+    key = (width, height, spp, grid_m, grid_n, seed)
+    if key in _sample_cache:
+        _sample_cache[key] = _sample_cache.pop(key)  # most recently used last
+        return _sample_cache[key]
+    out = wp.empty((height, width * spp), dtype=wp.vec2, device="cpu")
+
+    def launch(job):
+        _, first_row, rows = job
+        wp.launch(rk.sample_positions, dim=rows * width * spp, device="cpu",
+                  inputs=[spp, grid_m, grid_n, seed, width, first_row, out])
+
+    _run(launch, _chunks(height, threads), threads)
+    _sample_cache[key] = out
+    while len(_sample_cache) > CACHED_SAMPLE_LAYOUTS:
+        del _sample_cache[next(iter(_sample_cache))]
+    return out
+
+
+def sample_positions(width: int, height: int, spp: int = 1, grid_m: int = 1, grid_n: int = 1, seed: int = 0,
+                     threads: int | None = None) -> wp.array:
+    """Image positions (x, y) in pixels of every sample, shape (height, width * spp), sample s of
+    pixel (px, py) at [py, px * spp + s]: the ray caster's (render_tile's) very positions,
+    pixel centres for spp = 1, else multi_jittered_sample(s, grid_m, grid_n, seed + py * width + px).
+    Cached: do not write to the returned array."""
+    _check_sampling(width, height, spp, grid_m, grid_n, seed)
+    _load_kernels()
+    return _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, _thread_count(threads))
+
+
+def projection(cam: CameraData) -> rk.Projection:
+    """World-to-screen mapping of ``cam`` in float64, the exact inverse of camera_ray_direction."""
+    axes = np.array([cam.right, cam.up, cam.forward], dtype=np.float64).T
+    if not np.all(np.isfinite(axes)) or abs(np.linalg.det(axes)) < 1e-300:
+        raise InputError("camera axes must be finite and linearly independent")
+    proj = rk.Projection()
+    proj.eye = wp.vec3d(*np.array(cam.eye, dtype=np.float64))
+    proj.to_camera = wp.mat33d(*np.linalg.inv(axes).reshape(-1))
+    proj.half_width = 0.5 * cam.width
+    proj.half_height = 0.5 * cam.height
+    proj.width, proj.height = cam.width, cam.height
+    return proj
+
+
+def _thread_count(threads) -> int:
+    if threads is None:
+        return os.cpu_count() or 1
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise InputError(f"threads must be a whole number >= 1, got {threads!r}")
+    return int(threads)
+
+
+def _check_sampling(width, height, spp, grid_m, grid_n, seed):
+    for name, value in (("width", width), ("height", height), ("spp", spp), ("grid_m", grid_m),
+                        ("grid_n", grid_n), ("seed", seed)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise InputTypeError(f"{name} must be an integer, got {value!r}")
+    if not (1 <= width <= MAX_IMAGE_SIZE and 1 <= height <= MAX_IMAGE_SIZE):
+        raise InputError(f"image size must be 1..{MAX_IMAGE_SIZE} pixels a side, got {width}x{height}")
+    if spp < 1 or grid_m < 1 or grid_n < 1 or grid_m * grid_n != spp:
+        raise InputError(f"spp must be grid_m * grid_n >= 1, got spp={spp}, grid {grid_m}x{grid_n}")
+    if not 0 <= seed < 2**31:
+        raise InputError(f"seed must lie in [0, 2^31), got {seed}")
+
+
+def _check_geometry(positions, indices) -> tuple[int, int]:
+    """(vertex count, triangle count); every index checked, since one out of range crashes Warp."""
+    if not isinstance(positions, wp.array) or positions.dtype != wp.vec3 or positions.ndim != 1:
+        raise InputTypeError("positions must be a 1-D wp.array of wp.vec3")
+    if not isinstance(indices, wp.array) or indices.dtype != wp.int32 or indices.ndim != 1:
+        raise InputTypeError("indices must be a 1-D wp.array of wp.int32")
+    if positions.device.is_cuda or indices.device.is_cuda:
+        raise InputError("positions and indices must live on the CPU")
+    if len(indices) % 3:
+        raise InputError(f"indices must hold 3 per triangle, got {len(indices)}")
+    vertices, triangles = len(positions), len(indices) // 3
+    if triangles:
+        idx = indices.numpy()
+        if idx.min() < 0 or idx.max() >= vertices:
+            raise InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], "
+                             f"{vertices} vertices")
+    return vertices, triangles
+
+
+def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, spp: int = 1, grid_m: int = 1,
+                      grid_n: int = 1, seed: int = 0, threads: int | None = None,
+                      timings: dict | None = None) -> wp.array:
+    """The nearest triangle of every camera sample: a (cam.height, cam.width * spp) uint64
+    wp.array, sample s of pixel (px, py) at [py, px * spp + s] (see :func:`sample_positions`).
+
+    Each entry is (float32 bits of depth) << 32 | triangle id, NO_TRIANGLE (all ones) where no
+    triangle is hit; depth is camera-space z (the coefficient of cam.forward in point - eye),
+    the lower id wins exact depth ties. Both facings are drawn; degenerate triangles cover
+    nothing; triangles behind the camera are dropped and those crossing the camera plane or
+    leaving the guard band are ray-tested per sample. ``threads`` defaults to every core; the
+    buffer does not depend on it. ``timings``, if a dict, receives seconds per stage
+    ("samples", "binning", "raster").
+    """
+    threads = _thread_count(threads)
+    if not isinstance(cam, CameraData.cls):
+        raise InputTypeError(f"cam must be a CameraData, got {type(cam).__name__}")
+    width, height = int(cam.width), int(cam.height)
+    _check_sampling(width, height, spp, grid_m, grid_n, seed)
+    vertices, triangles = _check_geometry(positions, indices)
+    proj = projection(cam)
+    _load_kernels()
+    clock = time.perf_counter()
+    samples = _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads)
+    t_samples = time.perf_counter()
+
+    tiles_x = math.ceil(width / TILE_SIZE)
+    tiles = tiles_x * math.ceil(height / TILE_SIZE)
+    projected = wp.empty(max(vertices, 1), dtype=wp.vec3d, device="cpu")
+    _run(lambda job: wp.launch(rk.project_vertices, dim=job[2], device="cpu",
+                               inputs=[positions, proj, job[1], projected]),
+         _chunks(vertices, threads), threads)
+    chunks = _chunks(triangles, threads)
+    rects = wp.empty(max(triangles, 1), dtype=wp.vec4i, device="cpu")
+    tile_counts = wp.zeros((max(len(chunks), 1), tiles), dtype=wp.int32, device="cpu")
+    _run(lambda job: wp.launch(rk.count_tiles, dim=job[2], device="cpu",
+                               inputs=[positions, indices, projected, proj, job[1], job[0], tiles_x, rects,
+                                       tile_counts]),
+         chunks, threads)
+    # bins are contiguous per tile, each chunk's triangles after the previous chunks'
+    counts = tile_counts.numpy().astype(np.int64)
+    ends = np.cumsum(counts.T.reshape(-1)).reshape(tiles, -1)
+    if tiles and ends[-1, -1] >= 2**31:
+        raise InputError(f"too many triangle-tile pairs ({ends[-1, -1]}) for int32 bins")
+    cursors = wp.array(np.ascontiguousarray((ends - counts.T).T), dtype=wp.int32, device="cpu")
+    bin_start = wp.array(np.concatenate([[0], ends[:, -1]]), dtype=wp.int32, device="cpu")
+    bins = wp.empty(max(int(ends[-1, -1]) if tiles else 0, 1), dtype=wp.int32, device="cpu")
+    _run(lambda job: wp.launch(rk.fill_bins, dim=job[2], device="cpu",
+                               inputs=[rects, job[1], job[0], tiles_x, cursors, bins]),
+         chunks, threads)
+    t_binning = time.perf_counter()
+
+    out = wp.empty((height, width * spp), dtype=wp.uint64, device="cpu")
+    groups = min(tiles, LAUNCHES_PER_THREAD * threads if threads > 1 else 1)
+    _run(lambda group: wp.launch(rk.rasterize_tiles, dim=len(range(group, tiles, groups)), device="cpu",
+                                 inputs=[positions, indices, projected, rects, bin_start, bins, samples, spp, cam,
+                                         proj, tiles_x, group, groups, out]),
+         list(range(groups)), threads)
+    if timings is not None:
+        timings["samples"] = t_samples - clock
+        timings["binning"] = t_binning - t_samples
+        timings["raster"] = time.perf_counter() - t_binning
+    return out
+
+
+def decode(buffer) -> tuple[np.ndarray, np.ndarray]:
+    """(triangle ids, depths) of a visibility buffer as NumPy arrays of its shape: ids int64 with
+    -1 where nothing was hit, depths float32 with +inf there."""
+    entries = buffer.numpy() if isinstance(buffer, wp.array) else np.asarray(buffer, dtype=np.uint64)
+    miss = entries == np.uint64(NO_TRIANGLE)
+    ids = np.where(miss, -1, (entries & np.uint64(0xFFFFFFFF)).astype(np.int64))
+    depths = (entries >> np.uint64(32)).astype(np.uint32).view(np.float32).copy()
+    depths[miss] = np.inf
+    return ids, depths

@@ -1,0 +1,414 @@
+"""The rasterized visibility buffer (pbrwarp/raster.py) against Warp's ray caster: same triangle
+per sample but for depth ties and samples on edges, no cracks, no double coverage, clipping at
+the camera plane and the guard band, the ray caster's sample positions, any thread count."""
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+import pbrwarp as pw
+import warp as wp
+from pbrwarp.gpu_scene import upload
+from pbrwarp.kernels.camera import CameraData, camera_ray_direction
+from pbrwarp.kernels.raster import ray_triangle_intersection
+from pbrwarp.kernels.robust import RAY_FAR
+from pbrwarp.kernels.sampling import multi_jittered_sample
+from pbrwarp.meshes import ASSETS, bunny, icosphere
+from pbrwarp.raster import decode, sample_positions, visibility_buffer
+from pbrwarp.render import _camera_data, _stratification_grid
+
+GLTF = sorted(ASSETS.glob("gltf/*/glTF*/*.gl*"))
+# A disagreement "on an edge" lies this close (pixels) to an edge of one of the two triangles:
+# vertices and samples are snapped to 1/4096 pixel, and float32 rays err by ~1e-4 pixel.
+EDGE_TOLERANCE_PX = 2e-3
+# Relative difference of ray distances below which two hits are a depth tie.
+DEPTH_TIE = 1e-5
+
+
+@wp.kernel
+def ray_cast(mesh: wp.uint64, cam: CameraData, spp: int, grid_m: int, grid_n: int, seed: int,
+             out_face: wp.array2d(dtype=int), out_t: wp.array2d(dtype=float), out_xy: wp.array2d(dtype=wp.vec2)):
+    """The ray caster's primary visibility, sample positions computed as render_tile does."""
+    py, px, s = wp.tid()
+    offset = wp.vec2(0.5, 0.5)
+    if spp > 1:
+        offset = multi_jittered_sample(s, grid_m, grid_n, seed + py * cam.width + px)
+    x = float(px) + offset[0]
+    y = float(py) + offset[1]
+    out_xy[py, px * spp + s] = wp.vec2(x, y)
+    q = wp.mesh_query_ray(mesh, cam.eye, camera_ray_direction(cam, x, y), RAY_FAR)
+    out_face[py, px * spp + s] = wp.where(q.result, q.face, -1)
+    out_t[py, px * spp + s] = wp.where(q.result, q.t, wp.inf)
+
+
+@wp.kernel
+def intersection_vs_mesh_query(mesh: wp.uint64, positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
+                               cam: CameraData, xy: wp.array2d(dtype=wp.vec2), out: wp.array2d(dtype=wp.vec4)):
+    """(t, u, v) of ray_triangle_intersection minus mesh_query_ray's for the triangle the query hit, and the hit flag."""
+    py, col = wp.tid()
+    d = camera_ray_direction(cam, xy[py, col][0], xy[py, col][1])
+    q = wp.mesh_query_ray(mesh, cam.eye, d, RAY_FAR)
+    out[py, col] = wp.vec4(0.0, 0.0, 0.0, 1.0)
+    if q.result:
+        f = q.face
+        hit, t, u, v = ray_triangle_intersection(cam.eye, d, positions[indices[3 * f]], positions[indices[3 * f + 1]],
+                                                 positions[indices[3 * f + 2]])
+        out[py, col] = wp.vec4(t - q.t, u - q.u, v - q.v, wp.where(hit, 1.0, 0.0))
+
+
+class Geometry:
+    """A scene's merged positions, indices and BVH, as the renderer uploads them."""
+
+    def __init__(self, scene):
+        geometry = upload(scene)._keep[0]
+        self.positions, self.indices, self.mesh = geometry.positions, geometry.indices, geometry.mesh
+        self.vertices = geometry.positions.numpy().astype(np.float64)
+        self.faces = geometry.indices.numpy().reshape(-1, 3)
+
+
+def mesh_geometry(vertices, faces):
+    scene = pw.Scene()
+    scene.add_mesh(pw.Primitive(np.asarray(vertices, float), np.asarray(faces), pw.Material()))
+    return Geometry(scene)
+
+
+def raster(geom, cam, spp=1, seed=0, threads=None, faces=None):
+    grid_m, grid_n = _stratification_grid(spp)
+    indices = geom.indices if faces is None else wp.array(np.asarray(faces, np.int32).reshape(-1), dtype=wp.int32)
+    return decode(visibility_buffer(geom.positions, indices, cam, spp, grid_m, grid_n, seed, threads))
+
+
+def cast(geom, cam, spp=1, seed=0):
+    grid_m, grid_n = _stratification_grid(spp)
+    shape = (cam.height, cam.width * spp)
+    face, t = wp.empty(shape, dtype=int), wp.empty(shape, dtype=float)
+    xy = wp.empty(shape, dtype=wp.vec2)
+    wp.launch(ray_cast, dim=(cam.height, cam.width, spp), inputs=[geom.mesh.id, cam, spp, grid_m, grid_n, seed, face, t, xy])
+    return face.numpy(), t.numpy(), xy.numpy()
+
+
+def camera_data(camera, width=64, height=48):
+    return _camera_data(camera, width, height)
+
+
+def random_cameras(scene, count, seed):
+    """Cameras all around, some close to or inside the model, looking near its centre."""
+    rng = np.random.default_rng(seed)
+    lo, hi = scene.bounds()
+    centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+    for _ in range(count):
+        d = rng.normal(size=3)
+        eye = centre + d / np.linalg.norm(d) * radius * rng.uniform(0.1, 3.0)
+        target = centre + rng.normal(size=3) * radius * 0.3
+        yield pw.Camera.look_at(tuple(eye), tuple(target), up=tuple(rng.normal(size=3)), fov_y=float(rng.uniform(20, 100)))
+
+
+def screen_edge_distance(geom, cam, face, x, y):
+    """Pixels from (x, y) to the nearest edge line of ``face``'s projection; inf when the triangle
+    reaches behind the camera (then both paths cast the same ray at it)."""
+    axes = np.array([cam.right, cam.up, cam.forward], np.float64).T
+    c = (geom.vertices[geom.faces[face]] - np.array(cam.eye, np.float64)) @ np.linalg.inv(axes).T
+    if np.any(c[:, 2] <= 0):
+        return math.inf
+    sx = (c[:, 0] / c[:, 2] + 1) * cam.width / 2
+    sy = (1 - c[:, 1] / c[:, 2]) * cam.height / 2
+    distances = []
+    for i in range(3):
+        j = (i + 1) % 3
+        ex, ey = sx[j] - sx[i], sy[j] - sy[i]
+        length = math.hypot(ex, ey)
+        distances.append(abs(ex * (y - sy[i]) - ey * (x - sx[i])) / length if length > 0 else 0.0)
+    return min(distances)
+
+
+def ray_distance(geom, cam, face, x, y):
+    """Distance along the sample's (float64) camera ray to ``face``'s plane."""
+    d = (np.array(cam.forward, np.float64) + np.array(cam.right, np.float64) * (2 * x / cam.width - 1)
+         + np.array(cam.up, np.float64) * (1 - 2 * y / cam.height))
+    d /= np.linalg.norm(d)
+    p0, p1, p2 = geom.vertices[geom.faces[face]]
+    n = np.cross(p1 - p0, p2 - p0)
+    return float(np.dot(p0 - np.array(cam.eye, np.float64), n) / np.dot(d, n))
+
+
+def unexplained(geom, cam, raster_ids, cast_ids, xy):
+    """Disagreeing samples that are neither a depth tie nor on an edge of either triangle."""
+    bad = []
+    for row, col in zip(*np.nonzero(raster_ids != cast_ids)):
+        a, b = int(raster_ids[row, col]), int(cast_ids[row, col])
+        x, y = (float(v) for v in xy[row, col])
+        if a >= 0 and b >= 0:
+            ta, tb = ray_distance(geom, cam, a, x, y), ray_distance(geom, cam, b, x, y)
+            if abs(ta - tb) <= DEPTH_TIE * max(abs(ta), abs(tb)):
+                continue
+        if min(screen_edge_distance(geom, cam, f, x, y) for f in (a, b) if f >= 0) <= EDGE_TOLERANCE_PX:
+            continue
+        bad.append((row, col, a, b))
+    return bad
+
+
+def check_agreement(geom, cameras, spp=1, size=(64, 48)):
+    samples = disagreements = 0
+    for camera in cameras:
+        cam = camera_data(camera, *size)
+        ids, _ = raster(geom, cam, spp, seed=7)
+        cast_ids, _, xy = cast(geom, cam, spp, seed=7)
+        samples += ids.size
+        disagreements += int((ids != cast_ids).sum())
+        assert unexplained(geom, cam, ids, cast_ids, xy) == []
+    assert disagreements <= 0.001 * samples, (disagreements, samples)
+
+
+def scene_of(mesh):
+    scene = pw.Scene()
+    scene.add_mesh(mesh, pw.Material())
+    return scene
+
+
+SCENES = {
+    "icosphere": lambda: scene_of(icosphere(4)),
+    "bunny": lambda: scene_of(bunny()),
+    **{path.name: (lambda path=path: pw.Scene.load(path)) for path in GLTF},
+}
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_same_triangle_as_the_ray_caster(name):
+    if name != "icosphere" and not ASSETS.exists():
+        pytest.skip("shared/assets is not beside the repository")
+    scene = SCENES[name]()
+    check_agreement(Geometry(scene), random_cameras(scene, 20, seed=len(name)))
+
+
+@pytest.mark.parametrize("spp", [4, 6])
+def test_supersampling_uses_the_ray_casters_sample_positions(spp):
+    scene = scene_of(icosphere(3))
+    geom = Geometry(scene)
+    cam = camera_data(pw.Camera.frame(scene), 40, 30)
+    grid_m, grid_n = _stratification_grid(spp)
+    _, _, xy = cast(geom, cam, spp, seed=11)
+    np.testing.assert_array_equal(sample_positions(40, 30, spp, grid_m, grid_n, 11).numpy(), xy)
+    check_agreement(geom, random_cameras(scene, 20, seed=spp), spp=spp, size=(32, 24))
+
+
+def test_intersection_is_bitwise_mesh_query_ray():
+    """ray_triangle_intersection gives the very t, u, v mesh_query_ray reports for its hit."""
+    scene = scene_of(bunny() if ASSETS.exists() else icosphere(4))
+    geom = Geometry(scene)
+    for camera in random_cameras(scene, 5, seed=1):
+        cam = camera_data(camera)
+        xy = sample_positions(cam.width, cam.height)
+        out = wp.empty((cam.height, cam.width), dtype=wp.vec4)
+        wp.launch(intersection_vs_mesh_query, dim=out.shape,
+                  inputs=[geom.mesh.id, geom.positions, geom.indices, cam, xy, out])
+        np.testing.assert_array_equal(out.numpy(), np.tile([0.0, 0.0, 0.0, 1.0], (*out.shape, 1)))
+
+
+def test_closed_mesh_has_no_cracks():
+    """Seen from inside, a closed mesh covers every sample; from outside, every sample a ray
+    hits is covered (a missed sample inside the silhouette is a crack)."""
+    geom = Geometry(scene_of(icosphere(5)))
+    rng = np.random.default_rng(3)
+    for k in range(12):
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        inside = k % 2 == 0
+        eye = d * (rng.uniform(0.0, 0.9) if inside else rng.uniform(1.05, 4.0))
+        camera = pw.Camera.look_at(tuple(eye), tuple(rng.normal(size=3) * 0.2), up=tuple(rng.normal(size=3)), fov_y=70.0)
+        cam = camera_data(camera, 128, 96)
+        ids, _ = raster(geom, cam)
+        cast_ids, _, xy = cast(geom, cam)
+        if inside:
+            assert (ids >= 0).all()
+        missed = (ids < 0) & (cast_ids >= 0)
+        for row, col in zip(*np.nonzero(missed)):
+            assert screen_edge_distance(geom, cam, cast_ids[row, col], *xy[row, col]) <= EDGE_TOLERANCE_PX
+
+
+def head_on(width=64, height=64):
+    """Eye at the origin looking down -z with a 90 degree field of view: the plane z = -1 maps
+    (x, y) to pixel ((x + 1) w/2, (1 - y) h/2) exactly, so vertices can sit on sample positions."""
+    return camera_data(pw.Camera(eye=(0.0, 0.0, 0.0), forward=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0), fov_y=90.0),
+                       width, height)
+
+
+def pixel_to_plane(px, py, width=64, height=64):
+    return (2.0 * px / width - 1.0, 1.0 - 2.0 * py / height, -1.0)
+
+
+def coverage_count(geom, cam, faces, spp=1):
+    """How many of ``faces`` cover each sample, rasterizing them one at a time."""
+    counts = 0
+    for face in faces:
+        ids, _ = raster(geom, cam, spp, faces=[face])
+        counts = counts + (ids >= 0)
+    return counts
+
+
+@pytest.mark.parametrize("spp", [1, 4])
+def test_rectangle_of_two_triangles_covers_every_sample_once(spp):
+    """Corners and diagonal run through pixel centres (spp 1): every sample on the shared edge
+    and at the shared corners goes to exactly one of the two triangles."""
+    corners = [pixel_to_plane(x, y) for x, y in [(8.5, 6.5), (56.5, 6.5), (56.5, 54.5), (8.5, 54.5)]]
+    geom = mesh_geometry(corners, [[0, 1, 2], [0, 2, 3]])
+    cam = head_on()
+    counts = coverage_count(geom, cam, geom.faces, spp)
+    xy = sample_positions(64, 64, spp, *_stratification_grid(spp)).numpy()
+    inside = (xy[..., 0] > 8.5) & (xy[..., 0] < 56.5) & (xy[..., 1] > 6.5) & (xy[..., 1] < 54.5)
+    assert counts.max() == 1
+    assert counts[inside].min() == 1
+    ids, _ = raster(geom, cam, spp)
+    np.testing.assert_array_equal(ids >= 0, counts == 1)
+
+
+def test_fan_around_a_sample_covers_it_once():
+    """Eight triangles meeting at a pixel centre, with edges along rows, columns and diagonals
+    of pixel centres: every sample of the octagon, the centre included, is covered once."""
+    centre = (32.5, 32.5)
+    ring = [(centre[0] + 20 * math.cos(a), centre[1] + 20 * math.sin(a)) for a in np.arange(8) * math.pi / 4]
+    ring = [(round(x), round(y)) for x, y in ring]
+    ring = [(x + 0.5, y + 0.5) for x, y in ring]
+    vertices = [pixel_to_plane(*centre)] + [pixel_to_plane(*p) for p in ring]
+    faces = [[0, 1 + i, 1 + (i + 1) % 8] for i in range(8)]
+    geom = mesh_geometry(vertices, faces)
+    counts = coverage_count(geom, head_on(), faces)
+    assert counts.max() == 1
+    assert counts[32, 32] == 1
+    ids, _ = raster(geom, head_on())
+    assert (counts == (ids >= 0)).all()
+    xy = sample_positions(64, 64).numpy()
+    assert counts[strictly_inside_convex(xy, ring)].min() == 1
+
+
+def strictly_inside_convex(xy, polygon):
+    """Samples strictly inside a convex polygon given counter-clockwise on screen (y down)."""
+    inside = np.ones(xy.shape[:-1], bool)
+    for (x0, y0), (x1, y1) in zip(polygon, polygon[1:] + polygon[:1]):
+        inside &= (x1 - x0) * (xy[..., 1] - y0) - (y1 - y0) * (xy[..., 0] - x0) > 0
+    return inside
+
+
+def test_tessellated_plane_filling_the_view_has_no_cracks_or_overlaps():
+    """A 33 x 33 vertex grid, jittered, bent, both windings mixed, fills the view: every sample is
+    covered by exactly one triangle. Triangles of cells 3 apart never touch, so each of the 18
+    classes (row % 3, column % 3, half of the cell) is rasterized at once and the counts added."""
+    rng = np.random.default_rng(5)
+    u = np.linspace(-2.0, 2.0, 33)
+    x, y = np.meshgrid(u, u)
+    jitter = rng.uniform(-0.02, 0.02, size=(2, 33, 33))
+    vertices = np.stack([x + jitter[0], y + jitter[1], -1.0 - 0.05 * (x * x + y * y) - 0.03 * x * y], axis=-1).reshape(-1, 3)
+    classes = {}
+    for r in range(32):
+        for c in range(32):
+            a, b, d, e = r * 33 + c, r * 33 + c + 1, (r + 1) * 33 + c, (r + 1) * 33 + c + 1
+            halves = [[a, b, e], [a, e, d]] if (r + c) % 2 else [[a, b, d], [b, e, d]]
+            for half, tri in enumerate(halves):
+                classes.setdefault((r % 3, c % 3, half), []).append(tri[::-1] if rng.random() < 0.5 else tri)
+    faces = [tri for group in classes.values() for tri in group]
+    geom = mesh_geometry(vertices, faces)
+    cam = head_on(48, 48)
+    counts = sum((raster(geom, cam, faces=group)[0] >= 0).astype(int) for group in classes.values())
+    assert (counts == 1).all()
+    assert (raster(geom, cam)[0] >= 0).all()
+
+
+def test_camera_inside_a_box_sees_every_wall():
+    geom = Geometry(scene_of(trimesh.creation.box(extents=(2.0, 2.0, 2.0))))
+    rng = np.random.default_rng(8)
+    for _ in range(8):
+        eye = rng.uniform(-0.9, 0.9, size=3)
+        camera = pw.Camera.look_at(tuple(eye), tuple(eye + rng.normal(size=3)), up=tuple(rng.normal(size=3)), fov_y=100.0)
+        cam = camera_data(camera)
+        ids, _ = raster(geom, cam)
+        cast_ids, _, xy = cast(geom, cam)
+        assert (ids >= 0).all()
+        assert unexplained(geom, cam, ids, cast_ids, xy) == []
+
+
+def test_triangles_behind_the_camera_are_dropped():
+    geom = Geometry(scene_of(icosphere(3)))
+    cam = camera_data(pw.Camera(eye=(0.0, 0.0, 1.5), forward=(0.0, 0.0, 1.0), up=(0.0, 1.0, 0.0), fov_y=90.0))
+    ids, _ = raster(geom, cam)
+    assert (ids < 0).all()
+
+
+@pytest.mark.parametrize("height", [0.0, 0.01, 1.0])
+def test_ground_plane_crossing_the_camera_plane(height):
+    """Two huge triangles pass under (height 1), just under (0.01) and through (0) the eye: they
+    cross the camera plane, so each sample's ray is tested, and agree with the ray caster."""
+    s = 1e4
+    geom = mesh_geometry([(-s, -height, -s), (s, -height, -s), (s, -height, s), (-s, -height, s)], [[0, 1, 2], [0, 2, 3]])
+    rng = np.random.default_rng(2)
+    for _ in range(5):
+        forward = (rng.normal(), rng.uniform(-0.5, 0.2), rng.normal())
+        cam = camera_data(pw.Camera(eye=(0.0, 0.0, 0.0), forward=forward, up=(0.0, 1.0, 0.0), fov_y=80.0))
+        ids, _ = raster(geom, cam)
+        cast_ids, _, xy = cast(geom, cam)
+        assert (ids >= 0).any()
+        assert unexplained(geom, cam, ids, cast_ids, xy) == []
+
+
+def test_triangle_crossing_the_camera_plane_beside_the_eye():
+    """One vertex far in front, two behind: only the rays that really hit it see it."""
+    geom = mesh_geometry([(0.3, 0.1, -5.0), (1.0, -1.0, 2.0), (-0.5, 0.8, 3.0)], [[0, 1, 2]])
+    cam = head_on()
+    ids, _ = raster(geom, cam)
+    cast_ids, _, xy = cast(geom, cam)
+    assert 0 < (ids >= 0).sum() < ids.size
+    assert unexplained(geom, cam, ids, cast_ids, xy) == []
+
+
+def test_triangle_beyond_the_guard_band():
+    """Vertices in front of the camera but projecting millions of pixels away are ray-tested."""
+    geom = mesh_geometry([(-1e4, -1e4, -0.5), (1e4, -1e3, -0.6), (0.0, 1e4, -0.7)], [[0, 1, 2]])
+    cam = head_on()
+    ids, _ = raster(geom, cam)
+    cast_ids, _, xy = cast(geom, cam)
+    assert (ids >= 0).all()
+    assert unexplained(geom, cam, ids, cast_ids, xy) == []
+
+
+def test_depth_is_camera_space_z():
+    geom = mesh_geometry([pixel_to_plane(4, 4), pixel_to_plane(60, 4), pixel_to_plane(4, 60)], [[0, 1, 2]])
+    ids, depth = raster(geom, head_on())
+    np.testing.assert_allclose(depth[ids >= 0], 1.0, rtol=1e-6)
+    assert np.isinf(depth[ids < 0]).all()
+
+
+def test_both_facings_and_no_degenerate_coverage():
+    corners = [pixel_to_plane(10, 10), pixel_to_plane(50, 12), pixel_to_plane(20, 50)]
+    degenerate = [pixel_to_plane(5, 5), pixel_to_plane(30, 30), pixel_to_plane(60, 60)]
+    geom = mesh_geometry(corners + degenerate + [corners[0]], [[0, 1, 2], [2, 1, 0], [3, 4, 5], [0, 6, 1], [1, 1, 1]])
+    cam = head_on()
+    front, back = (raster(geom, cam, faces=[f])[0] >= 0 for f in ([0, 1, 2], [2, 1, 0]))
+    assert front.sum() > 500
+    np.testing.assert_array_equal(front, back)
+    for face in ([3, 4, 5], [0, 6, 1], [1, 1, 1]):
+        assert (raster(geom, cam, faces=[face])[0] < 0).all()
+
+
+def test_thread_count_does_not_change_the_buffer():
+    scene = scene_of(bunny() if ASSETS.exists() else icosphere(5))
+    geom = Geometry(scene)
+    for camera in random_cameras(scene, 3, seed=4):
+        cam = camera_data(camera, 200, 150)
+        buffers = [visibility_buffer(geom.positions, geom.indices, cam, 4, 2, 2, 1, threads=t).numpy()
+                   for t in (1, 2, 3)]
+        np.testing.assert_array_equal(buffers[0], buffers[1])
+        np.testing.assert_array_equal(buffers[0], buffers[2])
+
+
+def test_bad_input_is_rejected_before_warp():
+    geom = mesh_geometry([(0, 0, -1), (1, 0, -1), (0, 1, -1)], [[0, 1, 2]])
+    cam = head_on()
+    for indices, error in (([0, 1, 3], pw.InputError), ([0, 1, -1], pw.InputError), ([0, 1], pw.InputError)):
+        with pytest.raises(error):
+            visibility_buffer(geom.positions, wp.array(np.array(indices, np.int32), dtype=wp.int32), cam)
+    with pytest.raises(pw.InputTypeError):
+        visibility_buffer(geom.positions, wp.array(np.array([0, 1, 2], np.int64), dtype=wp.int64), cam)
+    with pytest.raises(pw.InputError):
+        visibility_buffer(geom.positions, geom.indices, cam, spp=4, grid_m=1, grid_n=2)
+    with pytest.raises(pw.InputError):
+        visibility_buffer(geom.positions, geom.indices, cam, threads=0)
