@@ -32,6 +32,8 @@ DEPTH_SHIFT = wp.constant(wp.uint64(32))
 # resolves, and coarse enough that edge functions fit int64 (see GUARD_BAND).
 SUBPIXEL_BITS = wp.constant(wp.int64(12))
 SUBPIXEL_SCALE = wp.constant(wp.float64(4096.0))
+PIXEL = wp.constant(wp.int64(4096))
+HALF_PIXEL = wp.constant(wp.int64(2048))
 # Largest |screen coordinate| in pixels a projected vertex may have. Snapped coordinates are then
 # below 2^29 and samples (images up to MAX_IMAGE_SIZE) below 2^28, so an edge function
 # A X + B Y + C stays below 2^61 and is computed exactly.
@@ -227,15 +229,17 @@ def clamped_rect(x0: int, y0: int, x1: int, y1: int, width: int, height: int) ->
 
 
 @wp.func
-def fixed_point_pixel_range(lo: wp.int64, hi: wp.int64) -> wp.vec2i:
-    """Pixels whose samples can lie in [lo, hi] (fixed point). A sample of pixel p lies in [p, p + 1]:
-    float32 p + offset may round up to p + 1."""
+def sampled_pixel_range(lo: wp.int64, hi: wp.int64, spp: int) -> wp.vec2i:
+    """First and last pixel with a sample in [lo, hi] (fixed point). With spp = 1 a pixel's sample
+    is its centre; with more it lies anywhere in [p, p + 1] (float32 p + offset may round up)."""
+    if spp == 1:
+        return wp.vec2i(int(-((HALF_PIXEL - lo) >> SUBPIXEL_BITS)), int((hi - HALF_PIXEL) >> SUBPIXEL_BITS))
     return wp.vec2i(int((lo - wp.int64(1)) >> SUBPIXEL_BITS), int(hi >> SUBPIXEL_BITS))
 
 
 @wp.func
-def projected_rect(q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, width: int, height: int) -> wp.vec4i:
-    """Pixels a projected triangle may cover; empty for a zero-area (degenerate) one."""
+def projected_rect(q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, spp: int, width: int, height: int) -> wp.vec4i:
+    """Pixels with samples a projected triangle may cover; empty for a zero-area (degenerate) one."""
     x0 = wp.int64(q0[0])
     y0 = wp.int64(q0[1])
     x1 = wp.int64(q1[0])
@@ -244,8 +248,8 @@ def projected_rect(q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, width: int, height:
     y2 = wp.int64(q2[1])
     if (x1 - x0) * (y2 - y0) == (y1 - y0) * (x2 - x0):
         return empty_rect()
-    xs = fixed_point_pixel_range(wp.min(x0, wp.min(x1, x2)), wp.max(x0, wp.max(x1, x2)))
-    ys = fixed_point_pixel_range(wp.min(y0, wp.min(y1, y2)), wp.max(y0, wp.max(y1, y2)))
+    xs = sampled_pixel_range(wp.min(x0, wp.min(x1, x2)), wp.max(x0, wp.max(x1, x2)), spp)
+    ys = sampled_pixel_range(wp.min(y0, wp.min(y1, y2)), wp.max(y0, wp.max(y1, y2)), spp)
     return clamped_rect(xs[0], ys[0], xs[1], ys[1], width, height)
 
 
@@ -325,7 +329,7 @@ def clipped_rect(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -> wp.
 
 @wp.func
 def triangle_rect(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
-                  projected: wp.array(dtype=wp.vec3d), proj: Projection, face: int) -> wp.vec4i:
+                  projected: wp.array(dtype=wp.vec3d), proj: Projection, spp: int, face: int) -> wp.vec4i:
     i0 = indices[3 * face]
     i1 = indices[3 * face + 1]
     i2 = indices[3 * face + 2]
@@ -333,7 +337,7 @@ def triangle_rect(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp
     q1 = projected[i1]
     q2 = projected[i2]
     if is_projected(q0) and is_projected(q1) and is_projected(q2):
-        return projected_rect(q0, q1, q2, proj.width, proj.height)
+        return projected_rect(q0, q1, q2, spp, proj.width, proj.height)
     if q0[2] == BEHIND_CAMERA and q1[2] == BEHIND_CAMERA and q2[2] == BEHIND_CAMERA:
         return empty_rect()
     return clipped_rect(proj, positions[i0], positions[i1], positions[i2])
@@ -342,12 +346,12 @@ def triangle_rect(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp
 # ---------------------------------------------------------------------- binning
 @wp.kernel
 def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
-                projected: wp.array(dtype=wp.vec3d), proj: Projection, first: int, chunk: int,
+                projected: wp.array(dtype=wp.vec3d), proj: Projection, spp: int, first: int, chunk: int,
                 tiles_x: int, rects: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32)):
     """Screen rectangle of each triangle of a chunk, and per tile how many of them touch it.
     Only this chunk's launch writes row ``chunk`` of tile_counts."""
     face = first + wp.tid()
-    r = triangle_rect(positions, indices, projected, proj, face)
+    r = triangle_rect(positions, indices, projected, proj, spp, face)
     rects[face] = r
     if r[0] > r[2]:
         return
@@ -445,6 +449,25 @@ def rasterize_triangle(face: int, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, rect
     k1 = q1[2] * inv_area
     k2 = q2[2] * inv_area
     k_bias = -(wp.float64(bias0) * k0 + wp.float64(bias1) * k1 + wp.float64(bias2) * k2)
+    if spp == 1:
+        # pixel centres: step the edge functions along the row instead of loading samples
+        step0 = a0 * PIXEL
+        step1 = a1 * PIXEL
+        step2 = a2 * PIXEL
+        for py in range(rect[1], rect[3] + 1):
+            sx = wp.int64(rect[0]) * PIXEL + HALF_PIXEL
+            sy = wp.int64(py) * PIXEL + HALF_PIXEL
+            e0 = a0 * sx + b0 * sy + c0
+            e1 = a1 * sx + b1 * sy + c1
+            e2 = a2 * sx + b2 * sy + c2
+            for px in range(rect[0], rect[2] + 1):
+                if (e0 | e1 | e2) >= wp.int64(0):
+                    inv_z = k_bias + k0 * wp.float64(e0) + k1 * wp.float64(e1) + k2 * wp.float64(e2)
+                    keep_nearest(out, py, px, visibility_entry(float(wp.float64(1.0) / inv_z), face))
+                e0 = e0 + step0
+                e1 = e1 + step1
+                e2 = e2 + step2
+        return
     for py in range(rect[1], rect[3] + 1):
         for col in range(rect[0] * spp, (rect[2] + 1) * spp):
             p = samples[py, col]

@@ -184,7 +184,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     rects = wp.empty(max(triangles, 1), dtype=wp.vec4i, device="cpu")
     tile_counts = wp.zeros((max(len(chunks), 1), tiles), dtype=wp.int32, device="cpu")
     _run(lambda job: wp.launch(rk.count_tiles, dim=job[2], device="cpu",
-                               inputs=[positions, indices, projected, proj, job[1], job[0], tiles_x, rects,
+                               inputs=[positions, indices, projected, proj, spp, job[1], job[0], tiles_x, rects,
                                        tile_counts]),
          chunks, threads)
     # bins are contiguous per tile, each chunk's triangles after the previous chunks'
