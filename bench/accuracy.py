@@ -48,6 +48,8 @@ FAMILY_RUNGS = {
     "geometry": ["implicit", "schlick_ggx", "smith_separable", "smith_correlated", "smith_correlated_fast"],
     "fresnel": ["none", "schlick", "spherical_gaussian", "exact"],
     "energy": ["single", "multiscatter"],
+    "coupling": ["albedo", "fresnel", "none"],
+    "model": ["microfacet", "phong", "blinn_phong"],
 }
 
 
@@ -73,6 +75,10 @@ def report_scenes():
     for i, (metallic, roughness) in enumerate(((1.0, 0.6), (1.0, 1.0), (0.0, 0.6), (0.0, 1.0))):
         white.add_mesh(sphere, pw.Material(base_color=(1.0, 1.0, 1.0), metallic=metallic, roughness=roughness),
                        transform=trimesh.transformations.translation_matrix((2.4 * i - 3.6, 0.0, 0.0)))
+    # a metal given by a complex IOR (illustrative values, a gold-like yellow), for the conductor
+    # Fresnel of the exact rung
+    white.add_mesh(sphere, pw.Material.conductor(n=(0.2, 0.9, 1.1), k=(3.9, 2.45, 1.8), roughness=0.3),
+                   transform=trimesh.transformations.translation_matrix((0.0, 2.4, 0.0)))
     white.add_light(pw.DirectionalLight(direction=(0.0, 0.0, -1.0), intensity=3.0))
     white.add_light(pw.PointLight(position=(0.0, 4.0, 2.0), intensity=40.0))
     return [

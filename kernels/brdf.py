@@ -62,13 +62,18 @@ def Fd_Burley(n_dot_v: float, n_dot_l: float, l_dot_h: float, roughness: float) 
 
 
 @wp.func
+def blinn_phong_exponent(alpha: float) -> float:
+    """a_p = 2 / alpha^2 - 2, the Blinn-Phong exponent matching GGX's alpha (Walter et al. 2007),
+    alpha^2 floored like D_GGX's."""
+    return 2.0 / wp.max(alpha * alpha, MIN_ALPHA_SQ) - 2.0
+
+
+@wp.func
 def D_BlinnPhong(alpha: float, n_dot_h: float) -> float:
-    """Normalized Blinn-Phong NDF, (a_p + 2) / (2 pi) (n.h)^a_p (seed 002), with the exponent
-    mapped from GGX's alpha as a_p = 2 / alpha^2 - 2 (Walter et al. 2007)."""
+    """Normalized Blinn-Phong NDF, (a_p + 2) / (2 pi) (n.h)^a_p (seed 002)."""
     if n_dot_h <= 0.0:
         return 0.0
-    a2 = wp.max(alpha * alpha, MIN_ALPHA_SQ)
-    power = 2.0 / a2 - 2.0
+    power = blinn_phong_exponent(alpha)
     return (power + 2.0) / (2.0 * PI) * wp.pow(wp.min(n_dot_h, 1.0), power)
 
 
@@ -145,6 +150,45 @@ def F_Exact(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
 
 
 @wp.func
+def fresnel_conductor(cos_i: float, eta: float, kappa: float) -> float:
+    """Unpolarized Fresnel reflectance of a conductor with complex IOR eta + i kappa (Born & Wolf;
+    the real-arithmetic form of Lagarde's "Memo on Fresnel equations", 2013)."""
+    c = wp.clamp(cos_i, 0.0, 1.0)
+    c2 = c * c
+    s2 = 1.0 - c2
+    t0 = eta * eta - kappa * kappa - s2
+    a2_plus_b2 = wp.sqrt(t0 * t0 + 4.0 * eta * eta * kappa * kappa)
+    a = wp.sqrt(wp.max(0.5 * (a2_plus_b2 + t0), 0.0))
+    t1 = a2_plus_b2 + c2
+    t2 = 2.0 * a * c
+    rs = (t1 - t2) / (t1 + t2)
+    t3 = c2 * a2_plus_b2 + s2 * s2
+    t4 = t2 * s2
+    rp = rs * (t3 - t4) / (t3 + t4)
+    return 0.5 * (rs + rp)
+
+
+@wp.func
+def F_Conductor(eta: wp.vec3, kappa: wp.vec3, v_dot_h: float) -> wp.vec3:
+    """Exact conductor Fresnel per channel from a complex IOR (n, k per RGB channel)."""
+    return wp.vec3(fresnel_conductor(v_dot_h, eta[0], kappa[0]), fresnel_conductor(v_dot_h, eta[1], kappa[1]),
+                   fresnel_conductor(v_dot_h, eta[2], kappa[2]))
+
+
+@wp.func
+def Fs_Phong(alpha_p: float, r_dot_v: float) -> float:
+    """Normalized Phong BRDF lobe, (a_p + 2) / (2 pi) (r.v)^a_p (seed 002; Lafortune & Willems 1994)."""
+    return (alpha_p + 2.0) / (2.0 * PI) * wp.pow(wp.clamp(r_dot_v, 0.0, 1.0), alpha_p)
+
+
+@wp.func
+def Fs_BlinnPhong(alpha_p: float, n_dot_h: float) -> float:
+    """Normalized Blinn-Phong BRDF lobe with Hoffman's cheap normalization (a_p + 8) / (8 pi)
+    (n.h)^a_p (seed 002, citing Akenine-Möller et al. 2008)."""
+    return (alpha_p + 8.0) / (8.0 * PI) * wp.pow(wp.clamp(n_dot_h, 0.0, 1.0), alpha_p)
+
+
+@wp.func
 def F_Schlick(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
     """Schlick's Fresnel approximation (Schlick 1994; seeds 001/002)."""
     x = wp.clamp(1.0 - v_dot_h, 0.0, 1.0)
@@ -170,6 +214,9 @@ DISTRIBUTIONS = ("ggx", "blinn_phong")
 GEOMETRY_MODELS = ("implicit", "schlick_ggx", "smith_separable", "smith_correlated", "smith_correlated_fast")
 FRESNEL_MODELS = ("none", "schlick", "spherical_gaussian", "exact")
 ENERGY_MODELS = ("single", "multiscatter")
+# "microfacet" is Cook-Torrance with the rungs above; the others are the legacy, non-PBR
+# baselines the seeds contrast it with, Lambert plus a normalized (Blinn-)Phong lobe.
+MODELS = ("microfacet", "phong", "blinn_phong")
 _VISIBILITY = {"implicit": V_Implicit, "smith_separable": V_SmithGGXSeparable,
                "smith_correlated": V_SmithGGXCorrelated, "smith_correlated_fast": V_SmithGGXCorrelatedFast}
 _FRESNEL = {"none": F_None, "schlick": F_Schlick, "spherical_gaussian": F_SphericalGaussian, "exact": F_Exact}
@@ -251,8 +298,8 @@ def albedo_lookup(distribution: str, geometry: str, fresnel: str):
 @functools.cache
 def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", distribution: str = "ggx",
              geometry: str = "schlick_ggx", fresnel: str = "schlick", energy: str = "single",
-             coupling: str = "albedo"):
-    """brdf(n, v, l, base_color, metallic, roughness, specular) -> f(l, v):
+             coupling: str = "albedo", model: str = "microfacet"):
+    """brdf(n, v, l, base_color, metallic, roughness, specular, eta=0, kappa=0) -> f(l, v):
     k (1 - metallic) c f_d + D F V, V = G / (4 n.l n.v) in its visibility form; n.v is clamped to
     MIN_COSINE, n.l <= 0 gives 0. The names pick each term's rung; the defaults are the seeds'
     terms (f_d Lambert, GGX, Smith/Schlick-GGX, Schlick, single scattering).
@@ -263,7 +310,14 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
     Lambert (white-furnace albedo E(v) + (1 - E(v)) = 1); "fresnel", the seeds' 1 - F(v.h), which
     gives smooth white dielectrics seen at grazing angles up to ~6% more light than they receive;
     "none", diffuse and specular simply added (Filament). ``energy="multiscatter"`` scales the
-    specular lobe by 1 + f0 (1/E1 - 1) (Fdez-Agüera 2019, as Filament).
+    specular lobe by 1 + f0 (1/E1 - 1) (Fdez-Agüera 2019, as Filament). ``fresnel="exact"``
+    gives metals with a complex IOR (``eta`` + i ``kappa`` per channel; eta = 0 when the material
+    gives none) the exact conductor Fresnel, F = mix(F_dielectric, F_conductor, metallic).
+
+    ``model="phong"`` or ``"blinn_phong"`` replace all of this by the legacy baselines:
+    (1 - c_spec) c_diff / pi plus c_spec times a normalized Phong or Blinn-Phong lobe (seed 002),
+    c_spec = f0, c_diff = (1 - metallic) base_color; the Phong exponent is a quarter of the
+    Blinn-Phong one, which gives highlights of about the same size (Akenine-Möller et al. 2008).
 
     Compiled with only the lobes a scene needs: without ``specular_lobe`` (every material has
     specular = 0 and metallic = 0, so f0 = f90 = 0) the Fresnel, D, V and albedo code is not
@@ -271,10 +325,14 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
     Either gives bit for bit what the full BRDF gives on such materials."""
     for name, value, allowed in (("diffuse", diffuse, DIFFUSE_MODELS), ("distribution", distribution, DISTRIBUTIONS),
                                  ("geometry", geometry, GEOMETRY_MODELS), ("fresnel", fresnel, FRESNEL_MODELS),
-                                 ("energy", energy, ENERGY_MODELS), ("coupling", coupling, COUPLING_MODELS)):
+                                 ("energy", energy, ENERGY_MODELS), ("coupling", coupling, COUPLING_MODELS),
+                                 ("model", model, MODELS)):
         if value not in allowed:
             raise ValueError(f"unknown {name} model {value!r}; choose one of {allowed}")
+    if model != "microfacet":
+        return legacy_brdf(diffuse_lobe, specular_lobe, model)
     fresnel_term = _FRESNEL[fresnel]
+    exact_fresnel = fresnel == "exact"
     visibility = visibility_for(geometry)
     ndf = distribution_for(distribution)
     multiscatter = energy == "multiscatter" and specular_lobe
@@ -328,7 +386,7 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
 
     @wp.func
     def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
-             specular: float) -> wp.vec3:
+             specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0)) -> wp.vec3:
         n_dot_l = wp.dot(n, l)
         if n_dot_l <= 0.0:
             return wp.vec3(0.0)
@@ -343,6 +401,10 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
             f0 = specular_f0(base_color, metallic, specular)
             f90 = specular_f90(metallic, specular)
             F = fresnel_term(f0, f90, v_dot_h)
+            if wp.static(exact_fresnel):
+                if eta[0] > 0.0:
+                    dielectric = F_Exact(specular_f0(base_color, 0.0, specular), specular_f90(0.0, specular), v_dot_h)
+                    F = wp.lerp(dielectric, F_Conductor(eta, kappa, v_dot_h), metallic)
             D = ndf(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
             out = F * (D * visibility(n_dot_v, n_dot_l, roughness))
             if wp.static(multiscatter):
@@ -358,6 +420,33 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
         elif wp.static(diffuse_lobe):
             fd = diffuse_term(n_dot_v, n_dot_l, wp.dot(l, h), roughness)
             out = base_color * ((1.0 - metallic) * fd)
+        return out
+
+    return brdf
+
+
+@functools.cache
+def legacy_brdf(diffuse_lobe: bool, specular_lobe: bool, model: str):
+    """The non-PBR baselines: Lambert plus a normalized Phong or Blinn-Phong lobe (see brdf_for)."""
+
+    @wp.func
+    def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
+             specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0)) -> wp.vec3:
+        n_dot_l = wp.dot(n, l)
+        if n_dot_l <= 0.0:
+            return wp.vec3(0.0)
+        c_spec = specular_f0(base_color, metallic, specular)
+        out = wp.vec3(0.0)
+        if wp.static(diffuse_lobe):
+            # c_diff (1 - c_spec) keeps c_diff + c_spec <= 1 (seed 002)
+            out = wp.cw_mul(wp.vec3(1.0) - c_spec, base_color) * ((1.0 - metallic) * Fd_Lambert())
+        if wp.static(specular_lobe):
+            power = blinn_phong_exponent(roughness * roughness)
+            if wp.static(model == "phong"):
+                r = 2.0 * n_dot_l * n - l
+                out = out + c_spec * Fs_Phong(0.25 * power, wp.dot(r, v))
+            else:
+                out = out + c_spec * Fs_BlinnPhong(power, wp.dot(n, safe_normalize(v + l, n)))
         return out
 
     return brdf

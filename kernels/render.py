@@ -146,7 +146,7 @@ def render_kernel(features):
                         max_t = wp.length(scene.lights[i].position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
                     if wp.mesh_query_ray_anyhit(scene.mesh, origin, ls.to_light, max_t):
                         continue
-                fr = brdf(n, view, ls.to_light, base, metallic, roughness, mat.specular)
+                fr = brdf(n, view, ls.to_light, base, metallic, roughness, mat.specular, mat.ior_eta, mat.ior_kappa)
                 radiance = radiance + wp.cw_mul(fr, ls.irradiance) * n_dot_l
         return radiance
 

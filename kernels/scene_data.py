@@ -19,6 +19,9 @@ class MaterialData:
     specular: float
     normal_scale: float
     alpha_cutoff: float
+    # complex IOR eta + i kappa of a metal for the exact Fresnel rung; eta = 0 when none is given
+    ior_eta: wp.vec3
+    ior_kappa: wp.vec3
     # 1 when back faces are shaded (glTF doubleSided), 0 when they are culled
     double_sided: int
     # 1 for glTF alphaMode MASK

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from .errors import InputError
 from pbrwarp.kernels.brdf import (COUPLING_MODELS, DIFFUSE_MODELS, DISTRIBUTIONS, ENERGY_MODELS, FRESNEL_MODELS,
-                                  GEOMETRY_MODELS)
+                                  GEOMETRY_MODELS, MODELS)
 
 
 @dataclass(frozen=True)
@@ -24,12 +24,16 @@ class BRDF:
     - ``geometry``: "implicit" (G = n.l n.v) | "schlick_ggx" | "smith_separable" (Walter 2007)
       | "smith_correlated" (Heitz 2014) | "smith_correlated_fast" (Hammon 2017)
     - ``fresnel``: "none" (F = f0) | "schlick" | "spherical_gaussian" (Lagarde 2012) | "exact"
-      (dielectric Fresnel with the IOR f0 implies)
+      (dielectric Fresnel with the IOR f0 implies; conductor Fresnel for materials with a
+      ``complex_ior``)
     - ``energy``: "single" | "multiscatter" (energy compensation of the specular lobe with its
       single-scattering albedo, integrated by a Warp kernel: Kulla & Conty 2017, Fdez-Agüera 2019)
     - ``coupling``: the diffuse lobe's share of light, "albedo" ((1 - E(v))(1 - E(l)) / (1 - E_avg)
       with E the specular albedo; Kelemen & Szirmay-Kalos 2001) | "fresnel" (the seeds' 1 - F(v.h))
       | "none" (diffuse + specular, as Filament)
+    - ``model``: "microfacet" (Cook-Torrance with the terms above) | "phong" | "blinn_phong": the
+      legacy non-PBR baselines, Lambert plus a normalized (Blinn-)Phong lobe (seeds 000 and 002),
+      which ignore the other terms
     """
 
     diffuse: str = "lambert"
@@ -38,16 +42,19 @@ class BRDF:
     fresnel: str = "schlick"
     energy: str = "single"
     coupling: str = "albedo"
+    model: str = "microfacet"
 
     def __post_init__(self):
         for name, allowed in (("diffuse", DIFFUSE_MODELS), ("distribution", DISTRIBUTIONS),
                               ("geometry", GEOMETRY_MODELS), ("fresnel", FRESNEL_MODELS), ("energy", ENERGY_MODELS),
-                              ("coupling", COUPLING_MODELS)):
+                              ("coupling", COUPLING_MODELS), ("model", MODELS)):
             value = getattr(self, name)
             if value not in allowed:
                 raise InputError(f"BRDF {name} must be one of {', '.join(allowed)}, got {value!r}")
 
     def describe(self) -> str:
+        if self.model != "microfacet":
+            return f"legacy {self.model} model: Lambert plus a normalized {self.model} lobe (not physically based)"
         return (f"{self.diffuse} diffuse, {self.distribution} distribution, {self.geometry} geometry, "
                 f"{self.fresnel} Fresnel, {self.energy} scattering, {self.coupling} coupling")
 

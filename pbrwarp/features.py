@@ -87,7 +87,8 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF
     def add(name, present, why):
         decisions.append(Decision(name, bool(present), why))
 
-    decisions.append(Decision("brdf", brdf, f"BRDF energy: {brdf.energy} scattering, {brdf.coupling} coupling of the diffuse lobe"))
+    decisions.append(Decision("brdf", brdf, f"BRDF energy: {brdf.energy} scattering, {brdf.coupling} coupling of the diffuse lobe"
+                              if brdf.model == "microfacet" else f"BRDF: {brdf.describe()}"))
 
     for name, kind, label in (("point_lights", POINT, "point light"), ("directional_lights", DIRECTIONAL, "directional light"),
                               ("spot_lights", SPOT, "spot light")):
@@ -99,9 +100,9 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF
         diffuse = any(m.metallic < 1.0 or m.metallic_roughness_texture is not None for m in mats)
         add("diffuse", diffuse, f"{brdf.diffuse} diffuse" if diffuse else "no diffuse: every material is fully metallic")
         specular = any(m.specular > 0.0 or m.metallic > 0.0 for m in mats)
-        add("specular", specular, f"Cook-Torrance specular: {brdf.distribution} distribution, {brdf.geometry} "
-            f"geometry, {brdf.fresnel} Fresnel" if specular
-            else "no specular lobe: every material has specular = 0 and metallic = 0")
+        lobe = (f"Cook-Torrance specular: {brdf.distribution} distribution, {brdf.geometry} geometry, {brdf.fresnel} "
+                f"Fresnel" if brdf.model == "microfacet" else f"legacy normalized {brdf.model} specular lobe")
+        add("specular", specular, lobe if specular else "no specular lobe: every material has specular = 0 and metallic = 0")
     if not shadows:
         add("shadows", False, "no shadow rays: shadows=False")
     elif not scene.lights:

@@ -152,6 +152,9 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.metallic, row.roughness, row.specular = mat.metallic, mat.roughness, mat.specular
     row.normal_scale, row.alpha_cutoff = mat.normal_scale, mat.alpha_cutoff
     row.double_sided = int(mat.double_sided)
+    if mat.complex_ior is not None:
+        row.ior_eta = _float32_vector(mat.complex_ior[0], "Material.complex_ior n")
+        row.ior_kappa = _float32_vector(mat.complex_ior[1], "Material.complex_ior k")
     row.alpha_mask = int(mat.alpha_mode == "MASK")
     slot_index = {slot: texture_slots[(id(tex), srgb)] if has_uvs else -1 for slot, tex, srgb in mat.textures()}
     row.base_color_texture = slot_index.get("base_color_texture", -1)

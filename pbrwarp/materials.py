@@ -40,6 +40,11 @@ class Material:
       plane is visible from both sides); when False, back faces are culled for camera rays, as
       glTF specifies (glTF files set it per material; glTF's own default is False). Shadows are
       cast by every face either way.
+    - ``complex_ior``: optional ``(n, k)``, the complex index of refraction n + ik of a metal,
+      each an RGB triple (n > 0, k >= 0), e.g. from refractiveindex.info at 650, 550 and 450 nm.
+      The exact Fresnel rung (``pw.BRDF(fresnel="exact")``, ``quality="reference"``) then uses
+      the conductor Fresnel equations for the metallic part; the approximate rungs use
+      ``base_color`` as f0, so :meth:`conductor` sets both consistently.
     """
 
     base_color: tuple = (0.8, 0.8, 0.8)
@@ -58,6 +63,7 @@ class Material:
     alpha_mode: str = "OPAQUE"
     alpha_cutoff: float = 0.5
     name: str = field(default="")
+    complex_ior: tuple | None = None
 
     def __post_init__(self):
         rgba = validate.colour(self.base_color, "Material.base_color", allow_alpha=True)
@@ -74,8 +80,19 @@ class Material:
         if self.alpha_mode not in ("OPAQUE", "MASK", "BLEND"):
             raise InputError(f"Material.alpha_mode must be OPAQUE, MASK or BLEND, got {self.alpha_mode!r}")
         self.double_sided = bool(self.double_sided)
+        if self.complex_ior is not None:
+            self.complex_ior = _complex_ior(self.complex_ior)
         for slot, _ in TEXTURE_SLOTS:
             setattr(self, slot, Texture.wrap(getattr(self, slot), f"Material.{slot}"))
+
+    @classmethod
+    def conductor(cls, n, k, roughness: float = 0.5, **kwargs) -> "Material":
+        """A metal given by its complex IOR n + ik (RGB triples): metallic = 1, base_color = the
+        normal-incidence reflectance ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2) (Born & Wolf) that the
+        approximate Fresnel rungs use, and ``complex_ior`` for the exact one."""
+        n_rgb, k_rgb = _complex_ior((n, k))
+        f0 = tuple(((a - 1) ** 2 + b**2) / ((a + 1) ** 2 + b**2) for a, b in zip(n_rgb, k_rgb))
+        return cls(base_color=f0, metallic=1.0, roughness=roughness, complex_ior=(n_rgb, k_rgb), **kwargs)
 
     def textures(self):
         """(slot, texture, srgb) for every texture this material uses."""
@@ -83,3 +100,16 @@ class Material:
             tex = getattr(self, slot)
             if tex is not None:
                 yield slot, tex, colour_slot if tex.srgb is None else tex.srgb
+
+
+def _complex_ior(value) -> tuple:
+    """(n, k) as two RGB triples with n > 0 and k >= 0."""
+    try:
+        n, k = value
+    except (TypeError, ValueError):
+        raise InputError(f"Material.complex_ior must be (n, k), two RGB triples, got {value!r}") from None
+    n = validate.finite_vector(n, 3, "Material.complex_ior n")
+    k = validate.finite_vector(k, 3, "Material.complex_ior k")
+    if min(n) <= 0.0 or min(k) < 0.0:
+        raise InputError(f"Material.complex_ior needs n > 0 and k >= 0 in every channel, got n={n}, k={k}")
+    return n, k

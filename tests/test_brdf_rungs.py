@@ -137,6 +137,120 @@ def test_exact_fresnel_is_the_dielectric_reflectance_of_the_implied_ior(fresnel)
     np.testing.assert_allclose(f90 * snell_fresnel(np.ones((1, 1)), eta), np.minimum(f0, 0.9999 * f90), rtol=1e-9)
 
 
+@wp.kernel(enable_backward=False)
+def eval_conductor(eta: wp.array(dtype=wp.vec3), kappa: wp.array(dtype=wp.vec3), vh: wp.array(dtype=float),
+                   out: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    out[i] = kb.F_Conductor(eta[i], kappa[i], vh[i])
+
+
+def complex_fresnel(cos_i, eta):
+    """Unpolarized reflectance of a complex IOR from the s and p amplitudes, in complex arithmetic
+    with Snell's law n cos_t = sqrt(n^2 - sin_i^2) (Born & Wolf)."""
+    root = np.sqrt(eta.astype(np.complex128) ** 2 - (1 - cos_i**2))
+    rs = (cos_i - root) / (cos_i + root)
+    rp = (eta**2 * cos_i - root) / (eta**2 * cos_i + root)
+    return 0.5 * (np.abs(rs) ** 2 + np.abs(rp) ** 2)
+
+
+def test_conductor_fresnel_matches_complex_arithmetic():
+    rng = np.random.default_rng(13)
+    eta = f32(rng.uniform(0.05, 3.0, (N, 3)))
+    kappa = f32(rng.uniform(0.0, 8.0, (N, 3)))
+    vh = f32(np.concatenate([rng.uniform(0.0, 1.0, N - 2), [0.0, 1.0]]))
+    out = wp.zeros(N, dtype=wp.vec3)
+    wp.launch(eval_conductor, dim=N, inputs=[wp.array(eta.astype(np.float32), dtype=wp.vec3),
+                                             wp.array(kappa.astype(np.float32), dtype=wp.vec3), wp.array(vh.astype(np.float32)), out])
+    want = complex_fresnel(vh[:, None], eta + 1j * kappa)
+    assert rel(out.numpy().astype(np.float64), want) <= 2e-5
+    # grazing incidence reflects everything; normal incidence is ((n-1)^2 + k^2) / ((n+1)^2 + k^2)
+    np.testing.assert_allclose(out.numpy()[-2], 1.0, rtol=1e-6)
+    np.testing.assert_allclose(out.numpy()[-1], ((eta[-1] - 1) ** 2 + kappa[-1] ** 2) / ((eta[-1] + 1) ** 2 + kappa[-1] ** 2), rtol=1e-5)
+
+
+def test_conductor_material_and_exact_rung():
+    """Material.conductor's base colour is its normal-incidence reflectance, so every Fresnel rung
+    agrees head-on; at oblique angles the exact rung follows the conductor equations."""
+    n, k = (0.2, 0.9, 1.1), (3.9, 2.45, 1.8)
+    metal = pw.Material.conductor(n, k, roughness=0.4)
+    want_f0 = complex_fresnel(np.ones(1), np.array(n) + 1j * np.array(k))
+    np.testing.assert_allclose(metal.base_color[:3], want_f0, rtol=1e-12)
+    assert metal.metallic == 1.0 and metal.complex_ior == (n, k)
+    cos_v = np.array([1.0, 0.6, 0.2])
+    v = wp.array(np.stack([np.sqrt(1 - cos_v**2), np.zeros(3), cos_v], -1).astype(np.float32), dtype=wp.vec3)
+
+    def evaluate(fresnel_model):
+        brdf = kb.brdf_for(False, True, fresnel=fresnel_model)
+
+        @wp.kernel(enable_backward=False, module="unique")
+        def mirror_pair(v: wp.array(dtype=wp.vec3), base: wp.vec3, eta: wp.vec3, kappa: wp.vec3, out: wp.array(dtype=wp.vec3)):
+            i = wp.tid()
+            mirrored = wp.vec3(-v[i][0], -v[i][1], v[i][2])
+            out[i] = brdf(wp.vec3(0.0, 0.0, 1.0), v[i], mirrored, base, 1.0, 0.4, 1.0, eta, kappa)
+
+        out = wp.zeros(3, dtype=wp.vec3)
+        wp.launch(mirror_pair, dim=3, inputs=[v, wp.vec3(*metal.base_color[:3]), wp.vec3(*n), wp.vec3(*k), out])
+        return out.numpy().astype(np.float64)
+
+    # l the mirror image of v: h = n, v.h = n.v, so exact / none = F_conductor(n.v) / f0 per channel
+    ratio = evaluate("exact") / evaluate("none")
+    want = complex_fresnel(cos_v[:, None], np.array(n) + 1j * np.array(k)) / want_f0
+    np.testing.assert_allclose(ratio, want, rtol=2e-5)
+    with pytest.raises(pw.InputError, match="complex_ior"):
+        pw.Material(complex_ior=((1.0, 1.0, 0.0), (1.0, 1.0, 1.0)))
+    with pytest.raises(pw.InputError, match="complex_ior"):
+        pw.Material(complex_ior=(1.0, 2.0, 3.0))
+
+
+@pytest.mark.parametrize("model", ["phong", "blinn_phong"])
+def test_legacy_models_follow_seed_002(model):
+    """Lambert (1 - c_spec) c_diff / pi plus c_spec times the normalized lobe: Phong
+    (a + 2) / (2 pi) (r.v)^a with a a quarter of the Blinn-Phong exponent, Blinn-Phong's
+    (a + 8) / (8 pi) (n.h)^a, a = 2 / alpha^2 - 2."""
+    brdf = kb.brdf_for(True, True, model=model)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def evaluate(v: wp.array(dtype=wp.vec3), l: wp.array(dtype=wp.vec3), base: wp.array(dtype=wp.vec3),
+                 m: wp.array(dtype=float), r: wp.array(dtype=float), out: wp.array(dtype=wp.vec3)):
+        i = wp.tid()
+        out[i] = brdf(wp.vec3(0.0, 0.0, 1.0), v[i], l[i], base[i], m[i], r[i], 1.0)
+
+    rng = np.random.default_rng(14)
+    count = 1024
+    v, l = (f32(x / np.linalg.norm(x, axis=1, keepdims=True)) for x in (rng.normal(size=(count, 3)) * [1, 1, 0] + [0, 0, 1.2],
+                                                                          rng.normal(size=(count, 3)) * [1, 1, 0] + [0, 0, 1.2]))
+    base, m, r = f32(rng.uniform(0, 1, (count, 3))), f32(rng.uniform(0, 1, count)), f32(rng.uniform(0.3, 1, count))
+    out = wp.zeros(count, dtype=wp.vec3)
+    wp.launch(evaluate, dim=count, inputs=[wp.array(a.astype(np.float32), dtype=wp.vec3) for a in (v, l, base)]
+              + [wp.array(m.astype(np.float32)), wp.array(r.astype(np.float32)), out])
+    c_spec = 0.04 * (1 - m[:, None]) + m[:, None] * base
+    power = 2 / r**4 - 2
+    if model == "phong":
+        refl = 2 * l[:, 2:3] * np.array([0, 0, 1.0]) - l
+        lobe = (power / 4 + 2) / (2 * np.pi) * np.clip(np.sum(refl * v, 1), 0, 1) ** (power / 4)
+    else:
+        h = (v + l) / np.linalg.norm(v + l, axis=1, keepdims=True)
+        lobe = (power + 8) / (8 * np.pi) * h[:, 2] ** power
+    want = (1 - c_spec) * (1 - m[:, None]) * base / np.pi + c_spec * lobe[:, None]
+    assert rel(out.numpy().astype(np.float64), want) <= 1e-4
+
+
+def test_normalized_phong_lobe_reflects_all_light_head_on():
+    """seed 002: with the (a + 2) / (2 pi) factor the Phong BRDF's albedo under light along n is 1."""
+
+    @wp.kernel(enable_backward=False)
+    def lobe(cos: wp.array(dtype=float), power: float, out: wp.array(dtype=float)):
+        i = wp.tid()
+        out[i] = kb.Fs_Phong(power, cos[i])
+
+    theta = np.linspace(0, np.pi / 2, 20001)
+    for power in (1.0, 10.0, 100.0):
+        out = wp.zeros(len(theta), dtype=float)
+        wp.launch(lobe, dim=len(theta), inputs=[wp.array(np.cos(theta).astype(np.float32)), power, out])
+        integral = np.trapezoid(out.numpy() * np.cos(theta) * 2 * np.pi * np.sin(theta), theta)
+        assert abs(integral - 1) <= 1e-3, (power, integral)
+
+
 def test_blinn_phong_ndf_is_normalized():
     """Projected-area normalization: the integral of D(h) n.h over the hemisphere is 1."""
     theta = np.linspace(0, np.pi / 2, 20001)
