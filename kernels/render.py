@@ -12,6 +12,7 @@ from .brdf import brdf_for
 from .camera import CameraData, camera_ray_direction
 from .lights import light_sampler
 from .normal_mapping import perturb_normal
+from .raster import ray_triangle_intersection, visible_triangle
 from .robust import (
     RAY_FAR,
     clamp_to_float32_max,
@@ -165,6 +166,28 @@ def render_kernel(features):
             n = -n
         return n
 
+    @wp.func
+    def primary_hit(scene: SceneData, vbuffer: wp.array2d(dtype=wp.uint64), py: int, column: int, origin: wp.vec3,
+                    d: wp.vec3):
+        """(face, u, v) of the nearest surface along a camera ray, face -1 for none: from the
+        visibility buffer, the hit recomputed by the ray caster's own ray-triangle test, or by a BVH
+        query."""
+        if wp.static(f.visibility == "raster"):
+            face = visible_triangle(vbuffer[py, column])
+            if face < 0:
+                return -1, 0.0, 0.0
+            p0 = scene.positions[scene.indices[3 * face]]
+            p1 = scene.positions[scene.indices[3 * face + 1]]
+            p2 = scene.positions[scene.indices[3 * face + 2]]
+            # barycentrics of the ray's crossing of the triangle's plane even where the raster's
+            # and the ray test's verdicts on an edge sample differ
+            hit, t, u, v = ray_triangle_intersection(origin, d, p0, p1, p2)
+            return face, u, v
+        q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
+        if not q.result:
+            return -1, 0.0, 0.0
+        return q.face, q.u, q.v
+
     @wp.kernel(enable_backward=False, module="unique")
     def render_tile(
         scene: SceneData,
@@ -181,6 +204,7 @@ def render_kernel(features):
         out_alpha: wp.array2d(dtype=float),
         out_depth: wp.array2d(dtype=float),
         out_normal: wp.array2d(dtype=wp.vec3),
+        vbuffer: wp.array2d(dtype=wp.uint64),
     ):
         tid = wp.tid()
         px = x0 + tid % tile_width
@@ -196,11 +220,11 @@ def render_kernel(features):
                 offset = multi_jittered_sample(s, grid_m, grid_n, pixel_seed)
             d = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1])
             origin = cam.eye
+            face, u, v = primary_hit(scene, vbuffer, py, px * spp + s, origin, d)
             for _ in range(MAX_PASS_THROUGH):
-                q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
-                if not q.result:
+                if face < 0:
                     break
-                h = surface_hit(scene, q.face, q.u, q.v, d)
+                h = surface_hit(scene, face, u, v, d)
                 mat = scene.materials[h.material]
                 uv = wp.vec2(0.0)
                 if wp.static(textured):
@@ -208,6 +232,10 @@ def render_kernel(features):
                 if wp.static(f.pass_through):
                     if is_culled(scene, h, mat, uv):
                         origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
+                        q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
+                        face = wp.where(q.result, q.face, -1)
+                        u = q.u
+                        v = q.v
                         continue
                 n = wp.vec3(0.0)
                 if wp.static(lit or f.aovs):

@@ -206,6 +206,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help="linear radiance where no surface is hit (default 0,0,0)")
         p.add_argument("--transparent", action="store_true",
                        help="write coverage as alpha (PNG, WebP, TIFF) instead of the background")
+        p.add_argument("--quality", choices=("fast", "balanced", "accurate", "reference"), default=None,
+                       help="BRDF preset (default balanced; see the README's accuracy table)")
+        p.add_argument("--visibility", choices=("auto", "raycast", "raster"), default="auto",
+                       help="primary visibility: ray cast, rasterized, or the cheaper by a cost model (default)")
         p.add_argument("--explain", action="store_true",
                        help="print which effects are simulated and why the others are not, then render")
 
@@ -283,11 +287,12 @@ def _shoulder_light(camera: Camera) -> DirectionalLight:
 def _render_and_save(scene, camera, args, background) -> None:
     from .render import explain, render
 
-    if args.explain:
-        print(explain(scene, shadows=args.shadows, spp=args.spp))
     width, height = args.size
-    frame = render(scene, camera, width=width, height=height, spp=args.spp, threads=args.threads,
-                   shadows=args.shadows, background=background)
+    options = dict(width=width, height=height, spp=args.spp, shadows=args.shadows, quality=args.quality,
+                   visibility=args.visibility)
+    if args.explain:
+        print(explain(scene, **options))
+    frame = render(scene, camera, threads=args.threads, background=background, **options)
     frame.save(args.output, exposure=args.exposure, tonemap=args.tonemap, transparent=args.transparent)
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .brdf import BRDF
+from .errors import InputError
 from .lights import DIRECTIONAL, POINT, SPOT
 
 
@@ -35,6 +36,8 @@ class Features:
     pass_through: bool = True
     # depth and normal outputs
     aovs: bool = True
+    # primary visibility: "raycast" (a BVH query per camera sample) or "raster" (a visibility buffer)
+    visibility: str = "raycast"
     # the model of each BRDF term
     brdf: BRDF = BRDF()
 
@@ -43,10 +46,10 @@ class Features:
         return self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture or self.normal_mapping
 
     @classmethod
-    def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF()) -> "Features":
+    def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "raycast") -> "Features":
         """Every effect compiled in: the unspecialized kernel, the reference for specialization.
-        Sampling, outputs and BRDF follow the options."""
-        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf)
+        Sampling, outputs, BRDF and the visibility path follow the options."""
+        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, visibility=visibility)
 
 
 @dataclass(frozen=True)
@@ -71,7 +74,34 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}" + ("" if n == 1 else "es" if noun.endswith("sh") else "s")
 
 
-def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF()) -> list[Decision]:
+VISIBILITY_MODES = ("auto", "raycast", "raster")
+# PROVISIONAL cost model (to be replaced by bench/visibility.py's fit)
+_RASTER_PER_TRIANGLE = 2.0e-8
+_RASTER_PER_SAMPLE = 5.0e-9
+_RAYCAST_PER_SAMPLE = 1.0e-7
+
+
+def estimated_visibility_seconds(triangles: int, samples: int) -> tuple[float, float]:
+    """(raster, ray cast) seconds of primary visibility on every core."""
+    return (_RASTER_PER_TRIANGLE * triangles + _RASTER_PER_SAMPLE * samples, _RAYCAST_PER_SAMPLE * samples)
+
+
+
+def _visibility(mode: str, triangles: int, samples: int) -> tuple[str, str]:
+    """(path, why) for primary visibility."""
+    if mode not in VISIBILITY_MODES:
+        raise InputError(f"visibility must be one of {', '.join(VISIBILITY_MODES)}, got {mode!r}")
+    raster_s, raycast_s = estimated_visibility_seconds(triangles, samples)
+    estimate = f"{triangles:,} triangles, {samples:,} samples: about {1e3 * raster_s:.1f} ms rasterized, {1e3 * raycast_s:.1f} ms ray cast"
+    if mode != "auto":
+        path = mode
+        return path, f"primary visibility {'rasterized' if path == 'raster' else 'ray cast'} (visibility={mode!r}; {estimate})"
+    path = "raster" if raster_s < raycast_s else "raycast"
+    return path, f"primary visibility {'rasterized' if path == 'raster' else 'ray cast'}, the cheaper ({estimate})"
+
+
+def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "auto",
+           samples: int = 480_000) -> list[Decision]:
     """Every effect with whether the render simulates it and why, in the order explain prints."""
     prims = scene.primitives
     rows = gpu.material_rows
@@ -86,6 +116,9 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF
 
     def add(name, present, why):
         decisions.append(Decision(name, bool(present), why))
+
+    path, why = _visibility(visibility, scene.triangle_count, samples)
+    decisions.append(Decision("visibility", path, why))
 
     decisions.append(Decision("brdf", brdf, f"BRDF energy: {brdf.energy} scattering, {brdf.coupling} coupling of the diffuse lobe"
                               if brdf.model == "microfacet" else f"BRDF: {brdf.describe()}"))
@@ -131,15 +164,15 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool, brdf: BRDF = BRDF
     return decisions
 
 
-def scene_features(scene, gpu, *, shadows: bool, spp: int, aovs: bool = True, brdf: BRDF = BRDF()) -> Features:
-    """The Features a scene needs under the given render options."""
-    return Features(**{d.name: d.present for d in decide(scene, gpu, shadows=shadows, spp=spp, aovs=aovs, brdf=brdf)})
+def scene_features(scene, gpu, **options) -> Features:
+    """The Features a scene needs under the given render options (decide's keywords)."""
+    return Features(**{d.name: d.present for d in decide(scene, gpu, **options)})
 
 
 def describe(decisions: list[Decision]) -> str:
     """The text of pw.explain: what is simulated, then what was dropped and why."""
-    on = [d.why for d in decisions if d.present]
-    off = [d.why for d in decisions if not d.present]
+    on = [d.why for d in decisions if d.present is not False]
+    off = [d.why for d in decisions if d.present is False]
     lines = ["simulated:"] + [f"  + {w}" for w in on] + ["not simulated:"] + [f"  - {w}" for w in dict.fromkeys(off)]
     return "\n".join(lines)
 

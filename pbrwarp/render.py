@@ -18,6 +18,7 @@ from .errors import InputTypeError
 from .features import Features, decide, describe, scene_features
 from .frame import Frame
 from .gpu_scene import upload
+from .raster import visibility_buffer
 from .scene import Scene
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.render import load_for_cpu, render_kernel
@@ -83,6 +84,7 @@ def render(
     specialize: bool = True,
     quality: str | None = None,
     brdf: BRDF | None = None,
+    visibility: str = "auto",
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
@@ -96,8 +98,11 @@ def render(
     ``specialize=False`` runs the kernel with every effect compiled in instead of the one built
     for this scene (same image, slower; for comparison). ``quality`` ("fast", "balanced" (the
     default), "accurate", "reference") picks a preset of BRDF rungs (pbrwarp.brdf.PRESETS);
-    ``brdf`` (:class:`BRDF`) picks each term's model and wins over ``quality``.
-    :func:`explain` says what is simulated.
+    ``brdf`` (:class:`BRDF`) picks each term's model and wins over ``quality``. ``visibility``
+    finds what each camera sample sees: "raycast" (a BVH query per sample), "raster" (a
+    rasterized visibility buffer, then the same ray-triangle test on the triangle it names, so
+    both shade identically where they pick the same triangle), or "auto" (the cheaper by a cost
+    model measured in bench/visibility.py). :func:`explain` says what is simulated.
     """
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
@@ -116,8 +121,10 @@ def render(
 
     brdf = brdf_for_quality(quality, brdf)
     gpu = upload(scene)
-    features = (scene_features(scene, gpu, shadows=shadows, spp=spp, aovs=aovs, brdf=brdf) if specialize
-                else Features.everything(spp, aovs, brdf))
+    options = dict(shadows=shadows, spp=spp, aovs=aovs, brdf=brdf, visibility=visibility, samples=width * height * spp)
+    features = scene_features(scene, gpu, **options)
+    if not specialize:
+        features = Features.everything(spp, aovs, brdf, features.visibility)
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
@@ -127,12 +134,17 @@ def render(
     out_depth = wp.empty(aov_shape, dtype=float, device="cpu")
     out_normal = wp.empty(aov_shape, dtype=wp.vec3, device="cpu")
     bg = wp.vec3(*background)
+    seed = int(seed) % (2**31)
+    if features.visibility == "raster":
+        vbuffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, spp, grid_m, grid_n, seed, threads)
+    else:
+        vbuffer = wp.empty((1, 1), dtype=wp.uint64, device="cpu")
 
     def launch(band):
         x0, y0, tile_width, tile_height = band
         wp.launch(kernel, dim=tile_width * tile_height, device="cpu",
-                  inputs=[gpu.data, cam, spp, grid_m, grid_n, int(seed) % (2**31), x0, y0, tile_width, bg,
-                          out_rgb, out_alpha, out_depth, out_normal])
+                  inputs=[gpu.data, cam, spp, grid_m, grid_n, seed, x0, y0, tile_width, bg,
+                          out_rgb, out_alpha, out_depth, out_normal, vbuffer])
 
     workers = threads or os.cpu_count() or 1
     work = bands(width, height, LAUNCHES_PER_THREAD * workers)
@@ -157,10 +169,13 @@ def render(
 
 
 def explain(scene: Scene, shadows: bool = True, spp: int = 1, aovs: bool = True, quality: str | None = None,
-            brdf: BRDF | None = None, **_render_options) -> str:
+            brdf: BRDF | None = None, visibility: str = "auto", width: int = 800, height: int = 600,
+            **_render_options) -> str:
     """Which effects :func:`render` with these options simulates for ``scene``, and why each
     absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow itself ...")."""
     if not isinstance(scene, Scene):
         raise InputTypeError(f"explain takes a pbrwarp.Scene, got {type(scene).__name__}")
     spp = validate.positive_int(spp, "spp")
-    return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf)))
+    samples = validate.positive_int(width, "width") * validate.positive_int(height, "height") * spp
+    return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf),
+                           visibility=visibility, samples=samples))
