@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -29,8 +30,31 @@ TILE_SIZE = int(rk.TILE_SIZE)
 MAX_IMAGE_SIZE = rk.MAX_IMAGE_SIZE
 # Launches per thread for the tile groups: enough for the pool to even out unequal tiles.
 LAUNCHES_PER_THREAD = 4
+# Fewest vertices or triangles worth a launch of their own: below this, a pool round trip costs
+# more than the work it would share.
+MIN_CHUNK = 16384
 # Sample-position arrays kept for reuse (they depend on the image size, spp and seed only).
 CACHED_SAMPLE_LAYOUTS = 4
+
+class _Scratch(threading.local):
+    """Per calling thread, the largest scratch array of each kind used so far, reused by later
+    frames: the first touch of fresh memory page-faults, and page faults do not scale across
+    threads (at 2048² they took a third of the frame and most of the second core's gain)."""
+
+    def __init__(self):
+        self.arrays = {}
+
+
+_scratch = _Scratch()
+
+
+def _scratch_array(kind: str, length: int, dtype) -> wp.array:
+    """A 1-D array of ``length`` (at least 1) elements of ``dtype``, reused across calls."""
+    array = _scratch.arrays.get(kind)
+    if array is None or len(array) < length:
+        array = _scratch.arrays[kind] = wp.empty(max(length, 1), dtype=dtype, device="cpu")
+    return array[:max(length, 1)]
+
 
 KERNELS = (rk.sample_positions, rk.project_vertices, rk.count_tiles, rk.fill_bins, rk.rasterize_tiles)
 
@@ -49,9 +73,10 @@ def _run(fn, jobs, threads: int):
         list(_thread_pool(threads).map(fn, jobs))
 
 
-def _chunks(n: int, parts: int):
-    """(index, first, count) of up to ``parts`` contiguous non-empty ranges covering [0, n)."""
-    step = max(1, math.ceil(n / parts))
+def _chunks(n: int, parts: int, minimum: int = MIN_CHUNK):
+    """(index, first, count) of up to ``parts`` contiguous non-empty ranges, of at least
+    ``minimum`` elements unless there is only one, covering [0, n)."""
+    step = max(minimum, math.ceil(n / parts))
     return [(k, first, min(step, n - first)) for k, first in enumerate(range(0, n, step))]
 
 
@@ -76,7 +101,7 @@ def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
         wp.launch(rk.sample_positions, dim=rows * width * spp, device="cpu",
                   inputs=[spp, grid_m, grid_n, seed, width, first_row, out])
 
-    _run(launch, _chunks(height, threads), threads)
+    _run(launch, _chunks(height, threads, minimum=1), threads)
     _sample_cache[key] = out
     while len(_sample_cache) > CACHED_SAMPLE_LAYOUTS:
         del _sample_cache[next(iter(_sample_cache))]
@@ -150,7 +175,7 @@ def _check_geometry(positions, indices) -> tuple[int, int]:
 
 def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, spp: int = 1, grid_m: int = 1,
                       grid_n: int = 1, seed: int = 0, threads: int | None = None,
-                      timings: dict | None = None) -> wp.array:
+                      out: wp.array | None = None, timings: dict | None = None) -> wp.array:
     """The nearest triangle of every camera sample: a (cam.height, cam.width * spp) uint64
     wp.array, sample s of pixel (px, py) at [py, px * spp + s] (see :func:`sample_positions`).
 
@@ -159,8 +184,10 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     the lower id wins exact depth ties. Both facings are drawn; degenerate triangles cover
     nothing; triangles behind the camera are dropped and those crossing the camera plane or
     leaving the guard band are ray-tested per sample. ``threads`` defaults to every core; the
-    buffer does not depend on it. ``timings``, if a dict, receives seconds per stage
-    ("samples", "binning", "raster").
+    buffer does not depend on it. ``out``, a buffer of that shape and dtype on the CPU, is filled
+    and returned instead of a new one: reusing it saves the page faults of fresh memory, which
+    take a third of a 2048² frame and do not scale across threads. ``timings``, if a dict,
+    receives seconds per stage ("samples", "binning", "raster").
     """
     threads = _thread_count(threads)
     if not isinstance(cam, CameraData.cls):
@@ -168,6 +195,9 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     width, height = int(cam.width), int(cam.height)
     _check_sampling(width, height, spp, grid_m, grid_n, seed)
     vertices, triangles = _check_geometry(positions, indices)
+    if out is not None and (not isinstance(out, wp.array) or out.dtype != wp.uint64 or out.device.is_cuda
+                            or out.shape != (height, width * spp) or not out.is_contiguous):
+        raise InputError(f"out must be a contiguous CPU wp.array of uint64 of shape {(height, width * spp)}")
     proj = projection(cam)
     _load_kernels()
     clock = time.perf_counter()
@@ -176,12 +206,12 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
 
     tiles_x = math.ceil(width / TILE_SIZE)
     tiles = tiles_x * math.ceil(height / TILE_SIZE)
-    projected = wp.empty(max(vertices, 1), dtype=wp.vec3d, device="cpu")
+    projected = _scratch_array("projected", vertices, wp.vec3d)
     _run(lambda job: wp.launch(rk.project_vertices, dim=job[2], device="cpu",
                                inputs=[positions, proj, job[1], projected]),
          _chunks(vertices, threads), threads)
     chunks = _chunks(triangles, threads)
-    rects = wp.empty(max(triangles, 1), dtype=wp.vec4i, device="cpu")
+    rects = _scratch_array("rects", triangles, wp.vec4i)
     tile_counts = wp.zeros((max(len(chunks), 1), tiles), dtype=wp.int32, device="cpu")
     _run(lambda job: wp.launch(rk.count_tiles, dim=job[2], device="cpu",
                                inputs=[positions, indices, projected, proj, spp, job[1], job[0], tiles_x, rects,
@@ -190,17 +220,18 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     # bins are contiguous per tile, each chunk's triangles after the previous chunks'
     counts = tile_counts.numpy().astype(np.int64)
     ends = np.cumsum(counts.T.reshape(-1)).reshape(tiles, -1)
-    if tiles and ends[-1, -1] >= 2**31:
+    if ends[-1, -1] >= 2**31:
         raise InputError(f"too many triangle-tile pairs ({ends[-1, -1]}) for int32 bins")
     cursors = wp.array(np.ascontiguousarray((ends - counts.T).T), dtype=wp.int32, device="cpu")
     bin_start = wp.array(np.concatenate([[0], ends[:, -1]]), dtype=wp.int32, device="cpu")
-    bins = wp.empty(max(int(ends[-1, -1]) if tiles else 0, 1), dtype=wp.int32, device="cpu")
+    bins = _scratch_array("bins", int(ends[-1, -1]), wp.int32)
     _run(lambda job: wp.launch(rk.fill_bins, dim=job[2], device="cpu",
                                inputs=[rects, job[1], job[0], tiles_x, cursors, bins]),
          chunks, threads)
     t_binning = time.perf_counter()
 
-    out = wp.empty((height, width * spp), dtype=wp.uint64, device="cpu")
+    if out is None:
+        out = wp.empty((height, width * spp), dtype=wp.uint64, device="cpu")
     groups = min(tiles, LAUNCHES_PER_THREAD * threads if threads > 1 else 1)
     _run(lambda group: wp.launch(rk.rasterize_tiles, dim=len(range(group, tiles, groups)), device="cpu",
                                  inputs=[positions, indices, projected, rects, bin_start, bins, samples, spp, cam,

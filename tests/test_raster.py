@@ -12,7 +12,7 @@ import pbrwarp as pw
 import warp as wp
 from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.camera import CameraData, camera_ray_direction
-from pbrwarp.kernels.raster import ray_triangle_intersection
+from pbrwarp.kernels.raster import ray_triangle_intersection, visible_triangle
 from pbrwarp.kernels.robust import RAY_FAR
 from pbrwarp.kernels.sampling import multi_jittered_sample
 from pbrwarp.meshes import ASSETS, bunny, icosphere
@@ -56,6 +56,12 @@ def intersection_vs_mesh_query(mesh: wp.uint64, positions: wp.array(dtype=wp.vec
         hit, t, u, v = ray_triangle_intersection(cam.eye, d, positions[indices[3 * f]], positions[indices[3 * f + 1]],
                                                  positions[indices[3 * f + 2]])
         out[py, col] = wp.vec4(t - q.t, u - q.u, v - q.v, wp.where(hit, 1.0, 0.0))
+
+
+@wp.kernel
+def triangle_ids(buffer: wp.array2d(dtype=wp.uint64), out: wp.array2d(dtype=int)):
+    row, col = wp.tid()
+    out[row, col] = visible_triangle(buffer[row, col])
 
 
 class Geometry:
@@ -394,10 +400,29 @@ def test_thread_count_does_not_change_the_buffer():
     geom = Geometry(scene)
     for camera in random_cameras(scene, 3, seed=4):
         cam = camera_data(camera, 200, 150)
+        reused = wp.empty((150, 800), dtype=wp.uint64)
         buffers = [visibility_buffer(geom.positions, geom.indices, cam, 4, 2, 2, 1, threads=t).numpy()
                    for t in (1, 2, 3)]
-        np.testing.assert_array_equal(buffers[0], buffers[1])
-        np.testing.assert_array_equal(buffers[0], buffers[2])
+        buffers.append(visibility_buffer(geom.positions, geom.indices, cam, 4, 2, 2, 1, threads=2, out=reused).numpy())
+        for other in buffers[1:]:
+            np.testing.assert_array_equal(buffers[0], other)
+
+
+def test_shading_kernels_read_the_same_ids():
+    """visible_triangle, what a shading kernel calls per sample, agrees with decode."""
+    geom = Geometry(scene_of(icosphere(3)))
+    cam = camera_data(pw.Camera.look_at((0.5, 0.3, 2.5), (0.0, 0.0, 0.0)))
+    buffer = visibility_buffer(geom.positions, geom.indices, cam)
+    ids = wp.empty(buffer.shape, dtype=int)
+    wp.launch(triangle_ids, dim=buffer.shape, inputs=[buffer, ids])
+    np.testing.assert_array_equal(ids.numpy(), decode(buffer)[0])
+    assert 0 < (ids.numpy() >= 0).mean() < 1
+
+
+def test_empty_mesh_covers_nothing():
+    positions = wp.array(np.zeros((0, 3), np.float32), dtype=wp.vec3)
+    ids, _ = decode(visibility_buffer(positions, wp.array(np.zeros(0, np.int32), dtype=wp.int32), head_on()))
+    assert (ids < 0).all()
 
 
 def test_bad_input_is_rejected_before_warp():
@@ -412,3 +437,5 @@ def test_bad_input_is_rejected_before_warp():
         visibility_buffer(geom.positions, geom.indices, cam, spp=4, grid_m=1, grid_n=2)
     with pytest.raises(pw.InputError):
         visibility_buffer(geom.positions, geom.indices, cam, threads=0)
+    with pytest.raises(pw.InputError):
+        visibility_buffer(geom.positions, geom.indices, cam, out=wp.empty((64, 63), dtype=wp.uint64))

@@ -1,0 +1,217 @@
+"""Primary visibility: the rasterized visibility buffer vs Warp ray casting vs Open3D (Embree).
+
+    python bench/visibility.py [--repeats 5] [--quick]
+
+Samples per second (one per pixel, every pixel counted, hit or not) of
+- raster: pbrwarp.raster.visibility_buffer, whole frame (projection, binning, rasterization;
+  the camera-independent sample positions are cached after the warm-up), on 1 and all threads;
+- ray cast: wp.mesh_query_ray from the eye per pixel, bands of rows on a thread pool as the
+  renderer launches them (pbrwarp.render.bands, LAUNCHES_PER_THREAD per thread);
+- Open3D's RaycastingScene.cast_rays (Embree, all cores) on the same rays, precomputed,
+  when open3d is installed.
+Meshes: an icosphere and the Stanford bunny at 512², 1024², 2048²; icospheres of 20k to 1.3M
+triangles at 1024². Also the raster's time split (binning vs rasterization) and least-squares
+cost models, time = a triangles + b samples for the raster and c samples log2(triangles) for
+the ray cast, whose constants pbrwarp/raster.py keeps. Medians of --repeats runs after a warm-up.
+Writes bench/results/visibility.{md,json}.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import sys
+
+import numpy as np
+import warp as wp
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import median_time, write_results  # noqa: E402
+
+import pbrwarp as pw  # noqa: E402
+from pbrwarp.gpu_scene import upload  # noqa: E402
+from pbrwarp.kernels import stages  # noqa: E402
+from pbrwarp.kernels.camera import CameraData, camera_ray_direction  # noqa: E402
+from pbrwarp.kernels.render import load_for_cpu  # noqa: E402
+from pbrwarp.kernels.robust import RAY_FAR  # noqa: E402
+from pbrwarp.meshes import bunny, icosphere  # noqa: E402
+from pbrwarp.raster import decode, visibility_buffer  # noqa: E402
+from pbrwarp.render import LAUNCHES_PER_THREAD, _camera_data, _thread_pool, bands  # noqa: E402
+
+
+@wp.kernel(enable_backward=False)
+def ray_cast_band(mesh: wp.uint64, cam: CameraData, y0: int, out_face: wp.array2d(dtype=wp.int32)):
+    """Nearest triangle through each pixel centre of rows y0..., as render_tile finds it."""
+    i = wp.tid()
+    px = i % cam.width
+    py = y0 + i / cam.width
+    q = wp.mesh_query_ray(mesh, cam.eye, camera_ray_direction(cam, float(px) + 0.5, float(py) + 0.5), RAY_FAR)
+    out_face[py, px] = wp.where(q.result, q.face, -1)
+
+
+def ray_cast(geom, cam, threads, out):
+    work = bands(cam.width, cam.height, LAUNCHES_PER_THREAD * threads)
+
+    def launch(band):
+        _, y0, width, rows = band
+        wp.launch(ray_cast_band, dim=width * rows, inputs=[geom.mesh.id, cam, y0, out], device="cpu")
+
+    if threads == 1:
+        for band in work:
+            launch(band)
+    else:
+        list(_thread_pool(threads).map(launch, work))
+
+
+def open3d_scene(mesh):
+    try:
+        import open3d as o3d
+    except ImportError:
+        return None
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)),
+                        o3d.core.Tensor(np.asarray(mesh.faces, np.uint32)))
+    return scene
+
+
+def bench_case(label, mesh, size, repeats, threads_all):
+    scene = pw.Scene()
+    scene.add_mesh(mesh, pw.Material())
+    geometry = upload(scene)._keep[0]
+    camera = pw.Camera.frame(scene, direction=(0.3, 0.4, 1.0))
+    cam = _camera_data(camera, size, size)
+    samples = size * size
+    triangles = len(mesh.faces)
+    row = {"mesh": label, "triangles": triangles, "size": size, "samples": samples}
+
+    buffer = wp.empty((size, size), dtype=wp.uint64, device="cpu")
+
+    def raster(threads, out=buffer, timings=None):
+        return visibility_buffer(geometry.positions, geometry.indices, cam, threads=threads, out=out, timings=timings)
+
+    for threads in sorted({1, threads_all}):
+        row[f"raster_ms_{threads}t"] = 1e3 * median_time(lambda: raster(threads), repeats)
+    row[f"raster_new_buffer_ms_{threads_all}t"] = 1e3 * median_time(lambda: raster(threads_all, None), repeats)
+    splits = []
+    for _ in range(repeats):
+        splits.append({})
+        raster(threads_all, timings=splits[-1])
+    row["binning_ms"] = 1e3 * statistics.median(t["binning"] for t in splits)
+    row["rasterization_ms"] = 1e3 * statistics.median(t["raster"] for t in splits)
+
+    faces = wp.empty((size, size), dtype=wp.int32, device="cpu")
+    load_for_cpu(ray_cast_band)
+    row[f"raycast_ms_{threads_all}t"] = 1e3 * median_time(lambda: ray_cast(geometry, cam, threads_all, faces), repeats)
+    ids, _ = decode(raster(threads_all))
+    row["coverage"] = float((ids >= 0).mean())
+    row["same_triangle"] = float((ids == faces.numpy()).mean())
+
+    o3d = open3d_scene(mesh)
+    if o3d is not None:
+        import open3d
+
+        dirs = wp.empty(samples, dtype=wp.vec3, device="cpu")
+        wp.launch(stages.primary_ray_directions, dim=samples, inputs=[cam, dirs], device="cpu")
+        rays = np.hstack([np.broadcast_to(np.asarray(camera.eye, np.float32), (samples, 3)), dirs.numpy()])
+        rays = open3d.core.Tensor(rays.astype(np.float32))
+        row["embree_ms"] = 1e3 * median_time(lambda: o3d.cast_rays(rays), repeats)
+
+    for key in [k for k in row if k.endswith("_ms") or "_ms_" in k]:
+        if key not in ("binning_ms", "rasterization_ms"):
+            row[key.replace("_ms", "_msamples_per_s")] = samples / row[key] / 1e3
+    if "embree_ms" in row:
+        row["raster_to_embree"] = row["embree_ms"] / row[f"raster_ms_{threads_all}t"]
+    row["raster_speedup"] = row["raster_ms_1t"] / row[f"raster_ms_{threads_all}t"]
+    return row
+
+
+def fit_cost_models(rows, threads_all):
+    """Least-squares constants (seconds per unit) of the raster and ray-cast time models."""
+    tris = np.array([r["triangles"] for r in rows], float)
+    samples = np.array([r["samples"] for r in rows], float)
+    raster = np.array([r[f"raster_ms_{threads_all}t"] for r in rows]) * 1e-3
+    raycast = np.array([r[f"raycast_ms_{threads_all}t"] for r in rows]) * 1e-3
+    # relative errors matter equally for small and large frames: weight rows by 1 / time
+    a, b = np.linalg.lstsq(np.stack([tris, samples], 1) / raster[:, None], np.ones_like(raster), rcond=None)[0]
+    (c,) = np.linalg.lstsq((samples * np.log2(tris))[:, None] / raycast[:, None], np.ones_like(raycast), rcond=None)[0]
+    model = {"raster_seconds_per_triangle": a, "raster_seconds_per_sample": b,
+             "raycast_seconds_per_sample_log2_triangle": c}
+    for r in rows:
+        r["raster_model_ms"] = 1e3 * (a * r["triangles"] + b * r["samples"])
+        r["raycast_model_ms"] = 1e3 * c * r["samples"] * math.log2(r["triangles"])
+    return model
+
+
+def markdown(rows, model, threads_all):
+    t = threads_all
+    lines = [
+        f"| mesh | triangles | size | raster ms 1t / {t}t | speedup | {t}t with a new buffer | binning / rasterization ms {t}t | "
+        f"ray cast ms {t}t | Embree ms | raster / ray cast / Embree Msamples/s | raster ÷ Embree | "
+        f"model raster / ray cast ms | coverage | same triangle |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        embree_ms = f"{r['embree_ms']:.1f}" if "embree_ms" in r else "n/a"
+        embree_rate = f"{r['embree_msamples_per_s']:.1f}" if "embree_ms" in r else "n/a"
+        ratio = f"{r['raster_to_embree']:.2f}x" if "raster_to_embree" in r else "n/a"
+        lines.append(
+            f"| {r['mesh']} | {r['triangles']:,} | {r['size']}² | {r['raster_ms_1t']:.1f} / {r[f'raster_ms_{t}t']:.1f} | "
+            f"{r['raster_speedup']:.2f}x | {r[f'raster_new_buffer_ms_{t}t']:.1f} | {r['binning_ms']:.1f} / {r['rasterization_ms']:.1f} | "
+            f"{r[f'raycast_ms_{t}t']:.1f} | {embree_ms} | "
+            f"{r[f'raster_msamples_per_s_{t}t']:.1f} / {r[f'raycast_msamples_per_s_{t}t']:.1f} / {embree_rate} | {ratio} | "
+            f"{r['raster_model_ms']:.1f} / {r['raycast_model_ms']:.1f} | {r['coverage']:.3f} | {r['same_triangle']:.5f} |")
+    lines += [
+        "",
+        "Samples are pixels (spp 1), all counted, hit or not. Raster: whole visibility_buffer call (binning = "
+        "vertex projection, triangle rectangles, bins; rasterization = tile clears and triangles), sample "
+        "positions cached, output buffer reused (out=) except in the new-buffer column, whose fresh pages "
+        "page-fault. Ray cast: wp.mesh_query_ray per pixel in row bands on the thread pool. Embree: "
+        "Open3D RaycastingScene.cast_rays on all cores, rays precomputed. Same triangle: fraction of pixels "
+        "where raster and ray cast name the same triangle (or both none).",
+        "",
+        f"Cost models on {t} threads, least squares weighted by 1/time over all rows (pbrwarp/raster.py keeps them):",
+        f"- raster (reused buffer) ≈ {model['raster_seconds_per_triangle'] * 1e9:.1f} ns × triangles + "
+        f"{model['raster_seconds_per_sample'] * 1e9:.2f} ns × samples",
+        f"- ray cast ≈ {model['raycast_seconds_per_sample_log2_triangle'] * 1e9:.2f} ns × samples × log2(triangles)",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def cases(quick):
+    if quick:
+        return [("icosphere", icosphere(4), 128)]
+    out = []
+    sphere = icosphere(6)
+    rabbit = bunny(decimated=False)
+    for size in (512, 1024, 2048):
+        out.append(("icosphere", sphere, size))
+        out.append(("stanford bunny", rabbit, size))
+    for subdivisions in (5, 7, 8):
+        out.append(("icosphere", icosphere(subdivisions), 1024))
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--quick", action="store_true", help="one small case, for checking the script")
+    args = ap.parse_args(argv)
+    wp.config.log_level = wp.LOG_WARNING
+    threads_all = os.cpu_count() or 1
+    rows = []
+    for label, mesh, size in cases(args.quick):
+        rows.append(bench_case(label, mesh, size, args.repeats, threads_all))
+        print(rows[-1], file=sys.stderr)
+    rows.sort(key=lambda r: (r["mesh"] != "icosphere" or r["triangles"] != 81920, r["mesh"], r["triangles"], r["size"]))
+    model = fit_cost_models(rows, threads_all) if len(rows) > 2 else {}
+    command = "python bench/visibility.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "")
+    if args.quick:
+        print(rows)
+        return
+    write_results("visibility", command, {"rows": rows, "cost_model": model}, markdown(rows, model, threads_all))
+
+
+if __name__ == "__main__":
+    main()
