@@ -23,6 +23,7 @@ from .robust import (
 )
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData
+from .shadow_map import ShadowMaps, shadow_map_visibility
 from .textures import sample_texture
 
 wp.set_module_options({"enable_backward": False})
@@ -111,7 +112,8 @@ def render_kernel(features):
         return False
 
     @wp.func
-    def shade(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3, n: wp.vec3) -> wp.vec3:
+    def shade(scene: SceneData, maps: ShadowMaps, h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3,
+              n: wp.vec3) -> wp.vec3:
         radiance = wp.vec3(0.0)
         if wp.static(f.emission):
             radiance = mat.emissive
@@ -140,15 +142,20 @@ def render_kernel(features):
                 n_dot_l = wp.dot(n, ls.to_light)
                 if n_dot_l <= 0.0:
                     continue
-                if wp.static(f.shadows):
+                unshadowed = float(1.0)
+                if wp.static(f.shadows == "rays"):
                     origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
                     max_t = RAY_FAR
                     if ls.distance < RAY_FAR:
                         max_t = wp.length(scene.lights[i].position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
                     if wp.mesh_query_ray_anyhit(scene.mesh, origin, ls.to_light, max_t):
                         continue
+                if wp.static(f.shadows == "map"):
+                    unshadowed = shadow_map_visibility(maps, i, scene.lights[i].position, h.p, h.ng)
+                    if unshadowed == 0.0:
+                        continue
                 fr = brdf(n, view, ls.to_light, base, metallic, roughness, mat.specular, mat.ior_eta, mat.ior_kappa)
-                radiance = radiance + wp.cw_mul(fr, ls.irradiance) * n_dot_l
+                radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
         return radiance
 
     @wp.func
@@ -205,6 +212,7 @@ def render_kernel(features):
         out_depth: wp.array2d(dtype=float),
         out_normal: wp.array2d(dtype=wp.vec3),
         vbuffer: wp.array2d(dtype=wp.uint64),
+        maps: ShadowMaps,
     ):
         tid = wp.tid()
         px = x0 + tid % tile_width
@@ -240,7 +248,7 @@ def render_kernel(features):
                 n = wp.vec3(0.0)
                 if wp.static(lit or f.aovs):
                     n = shading_normal(scene, h, mat, uv)
-                radiance = radiance + shade(scene, h, mat, uv, -d, n)
+                radiance = radiance + shade(scene, maps, h, mat, uv, -d, n)
                 hits = hits + 1
                 if wp.static(f.aovs):
                     normal_sum = normal_sum + n

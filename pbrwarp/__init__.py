@@ -15,11 +15,12 @@ from .materials import Material
 from .features import Features
 from .render import explain, render
 from .scene import Primitive, Scene
+from .shadow_maps import ShadowMap
 from .textures import Texture
 
 __all__ = [
     "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Features", "Frame", "FrameCheck", "InputError",
-    "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "Scene", "SpotLight",
+    "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "Scene", "ShadowMap", "SpotLight",
     "Texture", "check", "explain", "render",
 ]
 __version__ = "0.1.0"

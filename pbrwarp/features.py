@@ -14,6 +14,7 @@ import numpy as np
 
 from .brdf import BRDF
 from .errors import InputError
+from .shadow_maps import shadow_mode
 from .lights import DIRECTIONAL, POINT, SPOT
 
 
@@ -30,7 +31,8 @@ class Features:
     point_lights: bool = True
     directional_lights: bool = True
     spot_lights: bool = True
-    shadows: bool = True
+    # "rays" (a shadow ray per light and hit), "map" (shadow-map lookups) or False
+    shadows: object = "rays"
     supersampling: bool = True
     # camera rays may pass through surfaces: single-sided back faces, alpha masks
     pass_through: bool = True
@@ -46,10 +48,11 @@ class Features:
         return self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture or self.normal_mapping
 
     @classmethod
-    def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "raycast") -> "Features":
+    def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "raycast",
+                   shadows="rays") -> "Features":
         """Every effect compiled in: the unspecialized kernel, the reference for specialization.
-        Sampling, outputs, BRDF and the visibility path follow the options."""
-        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, visibility=visibility)
+        Sampling, outputs, BRDF, the visibility path and the shadow technique follow the options."""
+        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, visibility=visibility, shadows=shadow_mode(shadows)[0])
 
 
 @dataclass(frozen=True)
@@ -100,7 +103,7 @@ def _visibility(mode: str, triangles: int, samples: int) -> tuple[str, str]:
     return path, f"primary visibility {'rasterized' if path == 'raster' else 'ray cast'}, the cheaper ({estimate})"
 
 
-def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "auto",
+def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "auto",
            samples: int = 480_000) -> list[Decision]:
     """Every effect with whether the render simulates it and why, in the order explain prints."""
     prims = scene.primitives
@@ -136,14 +139,19 @@ def decide(scene, gpu, *, shadows: bool, spp: int, aovs: bool = True, brdf: BRDF
         lobe = (f"Cook-Torrance specular: {brdf.distribution} distribution, {brdf.geometry} geometry, {brdf.fresnel} "
                 f"Fresnel" if brdf.model == "microfacet" else f"legacy normalized {brdf.model} specular lobe")
         add("specular", specular, lobe if specular else "no specular lobe: every material has specular = 0 and metallic = 0")
+    shadows, _ = shadow_mode(shadows)
     if not shadows:
         add("shadows", False, "no shadow rays: shadows=False")
     elif not scene.lights:
         add("shadows", False, "no shadow rays: no lights")
     elif len(prims) == 1 and _is_convex(prims[0]):
         add("shadows", False, "no shadow rays: one convex mesh cannot shadow itself beyond what n.l does")
+    elif shadows == "map":
+        decisions.append(Decision("shadows", "map", f"shadow maps: {len(scene.lights)} lookups per hit, "
+                                  f"maps rasterized from each light ({scene.triangle_count:,} triangles)"))
     else:
-        add("shadows", True, f"shadow rays: {len(scene.lights)} per hit, against {scene.triangle_count:,} triangles")
+        decisions.append(Decision("shadows", "rays", f"shadow rays: {len(scene.lights)} per hit, against "
+                                  f"{scene.triangle_count:,} triangles"))
     present, why = slot("base_color_texture", "base colour texture")
     add("base_color_texture", present, why)
     present, why = slot("metallic_roughness_texture", "metallic-roughness texture")

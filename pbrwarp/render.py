@@ -19,6 +19,7 @@ from .features import Features, decide, describe, scene_features
 from .frame import Frame
 from .gpu_scene import upload
 from .raster import visibility_buffer
+from .shadow_maps import build as build_shadow_maps, no_shadow_maps, shadow_mode
 from .scene import Scene
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.render import load_for_cpu, render_kernel
@@ -76,7 +77,7 @@ def render(
     height: int = 600,
     spp: int = 1,
     threads: int | None = None,
-    shadows: bool = True,
+    shadows=True,
     background=(0.0, 0.0, 0.0),
     seed: int = 0,
     progress: bool | None = None,
@@ -90,8 +91,10 @@ def render(
 
     ``camera`` defaults to the scene file's first camera, else one framing the whole scene.
     ``spp`` samples per pixel are stratified (multi-jittered); spp = 1 samples pixel centres.
-    ``threads`` defaults to every core; the image does not depend on it. ``shadows`` traces one
-    shadow ray per light and sample. ``background`` is the linear radiance where no surface is
+    ``threads`` defaults to every core; the image does not depend on it. ``shadows``: True or "rays"
+    traces one shadow ray per light and sample (the reference); "map" or a :class:`ShadowMap`
+    looks shadows up in depth maps rasterized from each light (faster, approximate); False
+    renders none. ``background`` is the linear radiance where no surface is
     hit (``frame.alpha`` records coverage for transparent output). ``progress``: None shows a bar
     (if tqdm is installed) for renders longer than about a second, False never. ``aovs=False``
     skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are then None).
@@ -124,7 +127,7 @@ def render(
     options = dict(shadows=shadows, spp=spp, aovs=aovs, brdf=brdf, visibility=visibility, samples=width * height * spp)
     features = scene_features(scene, gpu, **options)
     if not specialize:
-        features = Features.everything(spp, aovs, brdf, features.visibility)
+        features = Features.everything(spp, aovs, brdf, features.visibility, shadows)
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
@@ -135,6 +138,8 @@ def render(
     out_normal = wp.empty(aov_shape, dtype=wp.vec3, device="cpu")
     bg = wp.vec3(*background)
     seed = int(seed) % (2**31)
+    maps = (build_shadow_maps(scene, gpu, shadow_mode(shadows)[1], threads) if features.shadows == "map"
+            else no_shadow_maps())
     if features.visibility == "raster":
         vbuffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, spp, grid_m, grid_n, seed, threads)
     else:
@@ -144,7 +149,7 @@ def render(
         x0, y0, tile_width, tile_height = band
         wp.launch(kernel, dim=tile_width * tile_height, device="cpu",
                   inputs=[gpu.data, cam, spp, grid_m, grid_n, seed, x0, y0, tile_width, bg,
-                          out_rgb, out_alpha, out_depth, out_normal, vbuffer])
+                          out_rgb, out_alpha, out_depth, out_normal, vbuffer, maps])
 
     workers = threads or os.cpu_count() or 1
     work = bands(width, height, LAUNCHES_PER_THREAD * workers)
@@ -168,7 +173,7 @@ def render(
     )
 
 
-def explain(scene: Scene, shadows: bool = True, spp: int = 1, aovs: bool = True, quality: str | None = None,
+def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
             brdf: BRDF | None = None, visibility: str = "auto", width: int = 800, height: int = 600,
             **_render_options) -> str:
     """Which effects :func:`render` with these options simulates for ``scene``, and why each

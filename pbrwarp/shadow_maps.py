@@ -1,0 +1,157 @@
+"""Shadow maps, the fast shadow rung: a depth map per light rendered by the rasterizer, looked up
+with percentage-closer filtering instead of tracing a shadow ray (kernels/shadow_map.py)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from . import validate
+from .errors import InputError
+from .lights import DIRECTIONAL, SPOT
+from .raster import decode, visibility_buffer
+from pbrwarp.kernels.camera import CameraData
+from pbrwarp.kernels.shadow_map import ShadowMaps, ShadowView
+
+# A directional light's map is seen by a pinhole camera this many scene radii away: its rays are
+# parallel to within 1/DISTANT_LIGHT_RADII radians, and float32 depths there still resolve
+# 1e-4 radii.
+DISTANT_LIGHT_RADII = 1000.0
+# Spot lights whose cone fits a view this wide get one map; wider ones get a cube of six.
+MAX_SPOT_VIEW_HALF_ANGLE = math.radians(60.0)
+CUBE_DIRECTIONS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
+
+
+@dataclass(frozen=True)
+class ShadowMap:
+    """Shadow-map settings, passed as ``pw.render(..., shadows=pw.ShadowMap(...))``
+    (``shadows="map"`` uses the defaults).
+
+    - ``resolution``: texels per side of each map (point lights and wide spot lights use six).
+    - ``bias``: the receiver is moved this many texels off its surface along its normal and may
+      lie as many texels behind the stored depth: larger removes acne on steep slopes, smaller
+      keeps contact shadows (peter-panning).
+    - ``pcf``: side of the square of texels averaged by percentage-closer filtering; 1 gives hard,
+      aliased edges.
+    """
+
+    resolution: int = 1024
+    bias: float = 1.5
+    pcf: int = 3
+
+    def __post_init__(self):
+        resolution = validate.positive_int(self.resolution, "ShadowMap.resolution")
+        if not 16 <= resolution <= 8192:
+            raise InputError(f"ShadowMap.resolution must lie in [16, 8192] texels, got {resolution}")
+        bias = validate.non_negative(self.bias, "ShadowMap.bias")
+        pcf = validate.positive_int(self.pcf, "ShadowMap.pcf")
+        if pcf > 9:
+            raise InputError(f"ShadowMap.pcf must be at most 9 (a 9 x 9 filter), got {pcf}")
+        object.__setattr__(self, "resolution", resolution)
+        object.__setattr__(self, "bias", bias)
+        object.__setattr__(self, "pcf", pcf)
+
+
+def _frame(forward) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(forward, right, up), orthonormal, for a view along ``forward``."""
+    f = np.asarray(forward, dtype=np.float64)
+    f = f / np.linalg.norm(f)
+    helper = np.array([0.0, 1.0, 0.0]) if abs(f[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    right = np.cross(f, helper)
+    right /= np.linalg.norm(right)
+    return f, right, np.cross(right, f)
+
+
+def _view(eye, forward, tan_half: float, resolution: int) -> tuple[CameraData, ShadowView]:
+    f, right, up = _frame(forward)
+    cam = CameraData()
+    cam.eye = wp.vec3(*eye)
+    cam.forward = wp.vec3(*f)
+    cam.right = wp.vec3(*(right * tan_half))
+    cam.up = wp.vec3(*(up * tan_half))
+    cam.width = cam.height = resolution
+    view = ShadowView()
+    view.eye = cam.eye
+    view.to_camera = wp.mat33(*np.linalg.inv(np.column_stack([right * tan_half, up * tan_half, f])).reshape(-1))
+    view.resolution = resolution
+    view.texel_per_depth = 2.0 * tan_half / resolution
+    return cam, view
+
+
+def _light_views(light, center, radius: float, settings: ShadowMap):
+    """The (CameraData, ShadowView) pairs of one light's maps."""
+    res = settings.resolution
+    if light.kind == DIRECTIONAL:
+        distance = DISTANT_LIGHT_RADII * radius
+        eye = center - np.asarray(light.direction) * distance
+        return [_view(eye, light.direction, radius / math.sqrt(distance**2 - radius**2), res)]
+    position = np.asarray(light.position, dtype=np.float64)
+    if light.kind == SPOT and light.outer_cone <= MAX_SPOT_VIEW_HALF_ANGLE:
+        # a texel of margin per PCF tap, so filtering at the cone's edge stays inside the map
+        tan_half = math.tan(light.outer_cone) * (1.0 + 2.0 * settings.pcf / res)
+        return [_view(position, light.direction, tan_half, res)]
+    tan_half = 1.0 + 2.0 * settings.pcf / res
+    return [_view(position, d, tan_half, res) for d in CUBE_DIRECTIONS]
+
+
+def _light_geometry(light) -> tuple:
+    """What a light's maps depend on (not its colour or intensity)."""
+    return (light.kind, tuple(getattr(light, "position", ())), tuple(getattr(light, "direction", ())),
+            getattr(light, "outer_cone", None))
+
+
+def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
+    """Every light's depth maps, rendered with the rasterizer and packed for the render kernel.
+
+    Kept on the scene and reused while its geometry, the lights' placement and the settings stay
+    the same: moving the camera or changing colours and intensities renders no new maps."""
+    key = (tuple(_light_geometry(light) for light in scene.lights), settings)
+    cached = scene.__dict__.get("_shadow_maps")
+    if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
+        return cached[2]
+    lo, hi = scene.bounds()
+    center = (lo + hi) / 2.0
+    radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
+    depths, views, spans = [], [], []
+    for light in scene.lights:
+        pairs = _light_views(light, center, radius, settings)
+        spans.append((len(views), len(pairs)))
+        for cam, view in pairs:
+            buffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads)
+            depths.append(decode(buffer)[1])
+            views.append(view)
+    maps = ShadowMaps()
+    maps.depth = wp.array(np.stack(depths) if depths else np.full((1, 1, 1), np.inf, np.float32), dtype=float,
+                          device="cpu")
+    maps.views = wp.array(views if views else [ShadowView()], dtype=ShadowView, device="cpu")
+    maps.light_views = wp.array(spans if spans else [(0, 0)], dtype=wp.vec2i, device="cpu")
+    maps.bias = settings.bias
+    maps.pcf = settings.pcf
+    scene.__dict__["_shadow_maps"] = (gpu.data.positions, key, maps)
+    return maps
+
+
+def shadow_mode(shadows) -> tuple[object, ShadowMap | None]:
+    """render's ``shadows`` option as (mode, settings): mode "rays", "map" or False."""
+    if shadows is True or shadows == "rays":
+        return "rays", None
+    if shadows is False or shadows is None:
+        return False, None
+    if shadows == "map":
+        return "map", ShadowMap()
+    if isinstance(shadows, ShadowMap):
+        return "map", shadows
+    raise InputError(f'shadows must be "rays" (or True), "map", a pbrwarp.ShadowMap or False, got {shadows!r}')
+
+
+def no_shadow_maps() -> ShadowMaps:
+    """The render kernel's argument when shadows are ray traced or off."""
+    maps = ShadowMaps()
+    maps.depth = wp.full((1, 1, 1), np.inf, dtype=float, device="cpu")
+    maps.views = wp.array([ShadowView()], dtype=ShadowView, device="cpu")
+    maps.light_views = wp.array([(0, 0)], dtype=wp.vec2i, device="cpu")
+    maps.bias, maps.pcf = 0.0, 1
+    return maps
