@@ -199,7 +199,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help="tone map for 8-bit output (default aces)")
         p.add_argument("--exposure", type=_finite_float("exposure"), default=0.0, metavar="EV",
                        help="exposure in stops: radiance is scaled by 2^EV (default 0)")
-        p.add_argument("--no-shadows", dest="shadows", action="store_false", help="skip shadow rays")
+        p.add_argument("--no-shadows", dest="shadows", action="store_const", const=False, default=True,
+                       help="render no shadows")
+        p.add_argument("--shadow-maps", dest="shadows", action="store_const", const="map",
+                       help="look shadows up in shadow maps instead of tracing shadow rays (faster, approximate)")
         p.add_argument("--threads", type=_positive_int("thread count"), default=None, metavar="N",
                        help="worker threads (default: every core)")
         p.add_argument("--background", type=parse_colour, default=None, metavar="R,G,B",

@@ -62,6 +62,15 @@ def test_render_with_lights_camera_and_npy_output(obj_file, out_dir, capsys):
     assert centre[3] == 1.0 and centre[0] > centre[2]  # the reddish point light dominates
 
 
+def test_shadow_maps_raster_and_quality_options(out_dir, capsys):
+    out = out_dir / "demo.png"
+    assert main(["demo", "-o", str(out), "--size", "48x36", "--shadow-maps", "--visibility", "raster",
+                 "--quality", "fast", "--explain"]) == 0
+    text = capsys.readouterr().out
+    assert "shadow maps" in text and "visibility='raster'" in text and "implicit geometry" in text
+    assert np.asarray(Image.open(out)).shape == (36, 48, 3)
+
+
 def test_transparent_png_has_alpha(obj_file, out_dir):
     out = out_dir / "ball.png"
     assert main(["render", str(obj_file), "-o", str(out), "--size", "32x24", "--transparent",
