@@ -170,7 +170,23 @@ def main(argv=None):
     frames = [render(s, c, shadows=False) for _, s, c in scenes]
     add("shadows", "shadows=False", [rel_rmse(f.rgb, r.rgb, r.alpha > 0) for f, r in zip(frames, with_shadows)],
         [flip(f, r) for f, r in zip(frames, with_shadows)], frame_ms(shadows=False))
-    rows.append({"family": "shadows", "rung": "shadows=True (ray traced)", "rel_rmse": 0.0, "per_scene": [0.0] * len(scenes),
+    for label, settings in (("shadows=map (512, pcf 1)", pw.ShadowMap(resolution=512, pcf=1)),
+                            ("shadows=map (1024, pcf 3, default)", pw.ShadowMap()),
+                            ("shadows=map (2048, pcf 3)", pw.ShadowMap(resolution=2048))):
+        frames = [render(s, c, shadows=settings) for _, s, c in scenes]
+
+        def fresh_maps(settings=settings):
+            # time the maps' rasterization too: a render that reuses them costs only the lookups
+            for _, s, c in scenes:
+                s.__dict__.pop("_shadow_maps", None)
+                render(s, c, shadows=settings)
+
+        add("shadows", label, [rel_rmse(f.rgb, r.rgb, r.alpha > 0) for f, r in zip(frames, with_shadows)],
+            [flip(f, r) for f, r in zip(frames, with_shadows)], 1e3 * median_time(fresh_maps, args.repeats))
+    rows.append({"family": "shadows", "rung": "shadows=map (default, maps reused)", "rel_rmse": rows[-2]["rel_rmse"],
+                 "per_scene": rows[-2]["per_scene"], "flip": rows[-2]["flip"], "ms": frame_ms(shadows="map"),
+                 "ns_per_eval": None})
+    rows.append({"family": "shadows", "rung": "shadows=rays (ray traced)", "rel_rmse": 0.0, "per_scene": [0.0] * len(scenes),
                  "flip": 0.0, "ms": frame_ms(), "ns_per_eval": None})
     print(f"done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
 
@@ -185,7 +201,9 @@ def main(argv=None):
                      + " | ".join(f"{e:.4f}" for e in r["per_scene"]) + " |")
     lines += ["", f"{width}x{height} frames on every core. BRDF and preset rows: error against "
               f"quality=reference ({REFERENCE.describe()}) at the same 4 spp; sampling rows: against 256 spp; "
-              "shadows=False: against ray-traced shadows. Times: spp 1, medians, summed over the four scenes.",
+              "shadows rows: against ray-traced shadows; shadow-map times include rasterizing the maps except "
+              "where they are reused (a new camera, the same lights and geometry). Times: spp 1, medians, summed over "
+              "the four scenes.",
               "", "![error vs time](accuracy.png)", "",
               "Differences to the reference (tone-mapped, amplified 4x), one row per rung:", "",
               "![differences](accuracy_differences.png)"]
@@ -231,7 +249,8 @@ def plot(rows, path):
         print("matplotlib is not installed (pip install -e '.[bench]'): no plot", file=sys.stderr)
         return
     colours = {"preset": "black", "diffuse": "tab:green", "distribution": "tab:purple", "geometry": "tab:blue",
-               "fresnel": "tab:orange", "energy": "tab:olive", "sampling": "tab:red", "shadows": "tab:brown"}
+               "fresnel": "tab:orange", "energy": "tab:olive", "coupling": "tab:cyan", "model": "tab:pink",
+               "sampling": "tab:red", "shadows": "tab:brown"}
     floor = 1e-4  # the reference itself (error 0) sits on the floor of the log axis
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), dpi=110)
     panels = ((axes[0], [r for r in rows if r["ns_per_eval"] is not None], "ns_per_eval",

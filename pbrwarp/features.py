@@ -48,11 +48,11 @@ class Features:
         return self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture or self.normal_mapping
 
     @classmethod
-    def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "raycast",
-                   shadows="rays") -> "Features":
-        """Every effect compiled in: the unspecialized kernel, the reference for specialization.
-        Sampling, outputs, BRDF, the visibility path and the shadow technique follow the options."""
-        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, visibility=visibility, shadows=shadow_mode(shadows)[0])
+    def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), shadows="rays") -> "Features":
+        """Every effect compiled in and primary rays ray cast: the unspecialized kernel, the
+        reference for specialization. Sampling, outputs, BRDF and the shadow technique follow the
+        options."""
+        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, shadows=shadow_mode(shadows)[0])
 
 
 @dataclass(frozen=True)

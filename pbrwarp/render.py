@@ -98,8 +98,8 @@ def render(
     hit (``frame.alpha`` records coverage for transparent output). ``progress``: None shows a bar
     (if tqdm is installed) for renders longer than about a second, False never. ``aovs=False``
     skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are then None).
-    ``specialize=False`` runs the kernel with every effect compiled in instead of the one built
-    for this scene (same image, slower; for comparison). ``quality`` ("fast", "balanced" (the
+    ``specialize=False`` runs the kernel with every effect compiled in, and ray-cast primary
+    visibility, instead of the one built for this scene (same image, slower; for comparison). ``quality`` ("fast", "balanced" (the
     default), "accurate", "reference") picks a preset of BRDF rungs (pbrwarp.brdf.PRESETS);
     ``brdf`` (:class:`BRDF`) picks each term's model and wins over ``quality``. ``visibility``
     finds what each camera sample sees: "raycast" (a BVH query per sample), "raster" (a
@@ -127,7 +127,7 @@ def render(
     options = dict(shadows=shadows, spp=spp, aovs=aovs, brdf=brdf, visibility=visibility, samples=width * height * spp)
     features = scene_features(scene, gpu, **options)
     if not specialize:
-        features = Features.everything(spp, aovs, brdf, features.visibility, shadows)
+        features = Features.everything(spp, aovs, brdf, shadows)
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
