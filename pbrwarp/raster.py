@@ -56,6 +56,14 @@ def _scratch_array(kind: str, length: int, dtype) -> wp.array:
     return array[:max(length, 1)]
 
 
+# Cost models for choosing between rasterizing and ray casting primary visibility, fitted on 2
+# cores by bench/visibility.py (bench/results/visibility.md, least squares weighted by 1/time):
+# raster seconds ~ RASTER_SECONDS_PER_TRIANGLE * triangles + RASTER_SECONDS_PER_SAMPLE * samples,
+# ray cast seconds ~ RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE * samples * log2(triangles).
+RASTER_SECONDS_PER_TRIANGLE = 61e-9
+RASTER_SECONDS_PER_SAMPLE = 5.3e-9
+RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 5.2e-9
+
 KERNELS = (rk.sample_positions, rk.project_vertices, rk.count_tiles, rk.fill_bins, rk.rasterize_tiles)
 
 
