@@ -26,7 +26,8 @@ import pbrwarp as pw  # noqa: E402
 from pbrwarp import meshes  # noqa: E402
 from pbrwarp.features import Features, scene_features  # noqa: E402
 from pbrwarp.gpu_scene import upload  # noqa: E402
-from pbrwarp.kernels.render import load_for_cpu, render_kernel  # noqa: E402
+from pbrwarp.kernels.loading import load_for_cpu  # noqa: E402
+from pbrwarp.kernels.render import render_kernel  # noqa: E402
 
 
 def bench_scenes():

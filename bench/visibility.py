@@ -34,11 +34,12 @@ import pbrwarp as pw  # noqa: E402
 from pbrwarp.gpu_scene import upload  # noqa: E402
 from pbrwarp.kernels import stages  # noqa: E402
 from pbrwarp.kernels.camera import CameraData, camera_ray_direction  # noqa: E402
-from pbrwarp.kernels.render import load_for_cpu  # noqa: E402
+from pbrwarp.kernels.loading import load_for_cpu  # noqa: E402
 from pbrwarp.kernels.robust import RAY_FAR  # noqa: E402
 from pbrwarp.meshes import bunny, icosphere  # noqa: E402
 from pbrwarp.raster import decode, visibility_buffer  # noqa: E402
-from pbrwarp.render import LAUNCHES_PER_THREAD, _camera_data, _thread_pool, bands  # noqa: E402
+from pbrwarp.parallel import thread_pool  # noqa: E402
+from pbrwarp.render import LAUNCHES_PER_THREAD, _camera_data, bands  # noqa: E402
 
 
 @wp.kernel(enable_backward=False)
@@ -62,7 +63,7 @@ def ray_cast(geom, cam, threads, out):
         for band in work:
             launch(band)
     else:
-        list(_thread_pool(threads).map(launch, work))
+        list(thread_pool(threads).map(launch, work))
 
 
 def open3d_scene(mesh):

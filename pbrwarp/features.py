@@ -8,11 +8,13 @@ so changing them never recompiles.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .brdf import BRDF
+from . import raster
 from .errors import InputError
 from .shadow_maps import shadow_mode
 from .lights import DIRECTIONAL, POINT, SPOT
@@ -78,16 +80,12 @@ def _count(n: int, noun: str) -> str:
 
 
 VISIBILITY_MODES = ("auto", "raycast", "raster")
-# PROVISIONAL cost model (to be replaced by bench/visibility.py's fit)
-_RASTER_PER_TRIANGLE = 2.0e-8
-_RASTER_PER_SAMPLE = 5.0e-9
-_RAYCAST_PER_SAMPLE = 1.0e-7
-
-
 def estimated_visibility_seconds(triangles: int, samples: int) -> tuple[float, float]:
-    """(raster, ray cast) seconds of primary visibility on every core."""
-    return (_RASTER_PER_TRIANGLE * triangles + _RASTER_PER_SAMPLE * samples, _RAYCAST_PER_SAMPLE * samples)
-
+    """(raster, ray cast) seconds of primary visibility on every core, by the cost models
+    bench/visibility.py fitted (pbrwarp/raster.py keeps the constants)."""
+    raster_s = raster.RASTER_SECONDS_PER_TRIANGLE * triangles + raster.RASTER_SECONDS_PER_SAMPLE * samples
+    raycast_s = raster.RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE * samples * math.log2(max(triangles, 2))
+    return raster_s, raycast_s
 
 
 def _visibility(mode: str, triangles: int, samples: int) -> tuple[str, str]:

@@ -15,7 +15,7 @@ import numpy as np
 import warp as wp
 
 from .errors import InputError
-from .lights import DIRECTIONAL, SPOT
+from .lights import SPOT
 from .materials import Material
 from .scene import unit_rows
 from .textures import WRAP_MODES

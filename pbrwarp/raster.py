@@ -10,20 +10,18 @@ the buffer does not depend on the thread count.
 
 from __future__ import annotations
 
-import functools
 import math
-import os
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import warp as wp
 
 from .errors import InputError, InputTypeError
+from .parallel import run, thread_count
 from pbrwarp.kernels import raster as rk
 from pbrwarp.kernels.camera import CameraData
-from pbrwarp.kernels.render import load_for_cpu
+from pbrwarp.kernels.loading import load_for_cpu
 
 NO_TRIANGLE = 0xFFFFFFFFFFFFFFFF
 TILE_SIZE = int(rk.TILE_SIZE)
@@ -67,18 +65,10 @@ RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 5.2e-9
 KERNELS = (rk.sample_positions, rk.project_vertices, rk.count_tiles, rk.fill_bins, rk.rasterize_tiles)
 
 
-@functools.cache
-def _thread_pool(workers: int) -> ThreadPoolExecutor:
-    return ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pbrwarp-raster")
-
-
 def _run(fn, jobs, threads: int):
-    """fn(job) for every job, on ``threads`` pool threads (inline for one thread or one job)."""
-    if threads == 1 or len(jobs) == 1:
-        for job in jobs:
-            fn(job)
-    else:
-        list(_thread_pool(threads).map(fn, jobs))
+    """fn(job) for every job, on ``threads`` pool threads, waiting for all."""
+    for _ in run(fn, jobs, threads):
+        pass
 
 
 def _chunks(n: int, parts: int, minimum: int = MIN_CHUNK):
@@ -124,7 +114,7 @@ def sample_positions(width: int, height: int, spp: int = 1, grid_m: int = 1, gri
     Cached: do not write to the returned array."""
     _check_sampling(width, height, spp, grid_m, grid_n, seed)
     _load_kernels()
-    return _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, _thread_count(threads))
+    return _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, thread_count(threads))
 
 
 def projection(cam: CameraData) -> rk.Projection:
@@ -139,14 +129,6 @@ def projection(cam: CameraData) -> rk.Projection:
     proj.half_height = 0.5 * cam.height
     proj.width, proj.height = cam.width, cam.height
     return proj
-
-
-def _thread_count(threads) -> int:
-    if threads is None:
-        return os.cpu_count() or 1
-    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
-        raise InputError(f"threads must be a whole number >= 1, got {threads!r}")
-    return int(threads)
 
 
 def _check_sampling(width, height, spp, grid_m, grid_n, seed):
@@ -197,7 +179,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     take a third of a 2048² frame and do not scale across threads. ``timings``, if a dict,
     receives seconds per stage ("samples", "binning", "raster").
     """
-    threads = _thread_count(threads)
+    threads = thread_count(threads)
     if not isinstance(cam, CameraData.cls):
         raise InputTypeError(f"cam must be a CameraData, got {type(cam).__name__}")
     width, height = int(cam.width), int(cam.height)

@@ -3,10 +3,7 @@ thread pool (Warp CPU launches run on one thread and release the GIL)."""
 
 from __future__ import annotations
 
-import functools
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import warp as wp
@@ -18,11 +15,13 @@ from .errors import InputTypeError
 from .features import Features, decide, describe, scene_features
 from .frame import Frame
 from .gpu_scene import upload
+from .parallel import run, thread_count
 from .raster import visibility_buffer
 from .shadow_maps import build as build_shadow_maps, no_shadow_maps, shadow_mode
 from .scene import Scene
 from pbrwarp.kernels.camera import CameraData
-from pbrwarp.kernels.render import load_for_cpu, render_kernel
+from pbrwarp.kernels.loading import load_for_cpu
+from pbrwarp.kernels.render import render_kernel
 
 # Launches per thread, each a contiguous band of rows. In trials on 2 cores (the bench/kernels.py
 # scenes) 4 per thread scaled best: more bands add GIL-held Python per launch, fewer leave a
@@ -51,12 +50,6 @@ def bands(width: int, height: int, count: int):
     """(x0, y0, tile_width, tile_height) of about ``count`` bands of whole rows covering the image."""
     rows = math.ceil(height / min(count, height))
     return [(0, y0, width, min(rows, height - y0)) for y0 in range(0, height, rows)]
-
-
-@functools.cache
-def _thread_pool(workers: int) -> ThreadPoolExecutor:
-    """One long-lived pool per thread count: starting threads for every frame costs ~1 ms."""
-    return ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pbrwarp")
 
 
 def _progress_bar(total: int, enabled):
@@ -151,14 +144,13 @@ def render(
                   inputs=[gpu.data, cam, spp, grid_m, grid_n, seed, x0, y0, tile_width, bg,
                           out_rgb, out_alpha, out_depth, out_normal, vbuffer, maps])
 
-    workers = threads or os.cpu_count() or 1
+    workers = thread_count(threads)
     work = bands(width, height, LAUNCHES_PER_THREAD * workers)
     bar = _progress_bar(len(work), progress)
     # compile or load the kernel once, before many threads would all try at once
     load_for_cpu(kernel)
-    run = map if workers == 1 or len(work) == 1 else _thread_pool(workers).map
     try:
-        for _ in run(launch, work):
+        for _ in run(launch, work, workers):
             if bar is not None:
                 bar.update(1)
     finally:

@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from . import validate
 from .camera import Camera
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
 from .lights import DirectionalLight, PointLight, SpotLight
 from .materials import Material
-from .textures import Texture, srgb_to_linear
+from .textures import srgb_to_linear
 
 LOADABLE = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off")
 _CREASE_ANGLE = math.radians(30.0)

@@ -1,6 +1,5 @@
 """Sampling, texture filtering and tone mapping kernels against their definitions."""
 
-import math
 
 import numpy as np
 import pytest

@@ -8,9 +8,10 @@ import trimesh
 import pbrwarp as pw
 from pbrwarp.features import scene_features
 from pbrwarp.gpu_scene import upload
-from pbrwarp.kernels.render import generated_source, render_kernel
+from pbrwarp.kernels.loading import generated_source
+from pbrwarp.kernels.render import render_kernel
 
-from scenes import box, head_on_camera, quad, render_checked
+from scenes import box, render_checked
 
 
 def sphere_scene(material, lights, sphere=None):

@@ -9,7 +9,6 @@ with each is rendered head-on under a directional light of E lux: a white Lamber
 
 from __future__ import annotations
 
-import io
 import math
 
 import numpy as np
