@@ -256,6 +256,17 @@ COUPLING_MODELS = ("albedo", "fresnel", "none")
 MIN_DIFFUSE_SHARE = wp.constant(1.0e-6)
 
 
+def static_table(values: tuple):
+    """entry(i) -> values[i], the values compiled into a static C++ array: a wp.constant matrix
+    would be rebuilt on the stack at every call (thousands of floats), costing more than the BRDF."""
+    body = ", ".join(f"{float(v)!r}f" for v in values)
+
+    @wp.func_native(f"static const float values[{len(values)}] = {{{body}}};\nreturn values[i];")
+    def entry(i: int) -> float: ...
+
+    return entry
+
+
 @functools.cache
 def albedo_lookup(distribution: str, geometry: str, fresnel: str):
     """(lookup, averages) over the energy tables of a rung triple: lookup(n.x, roughness) -> (E1, Ew),
@@ -264,8 +275,12 @@ def albedo_lookup(distribution: str, geometry: str, fresnel: str):
 
     t = albedo_tables(distribution, geometry, fresnel)
     size = t.size
-    table = wp.constant(wp.types.matrix(shape=(size, 2 * size), dtype=wp.float32)(*t.albedo))
-    means = wp.constant(wp.types.matrix(shape=(4, size), dtype=wp.float32)(*t.averages))
+    table = static_table(t.albedo)
+    means = static_table(t.averages)
+
+    @wp.func
+    def pair(cell: int) -> wp.vec2:
+        return wp.vec2(table(cell), table(cell + 1))
 
     @wp.func
     def lookup(n_dot: float, roughness: float) -> wp.vec2:
@@ -273,24 +288,22 @@ def albedo_lookup(distribution: str, geometry: str, fresnel: str):
         y = wp.clamp(roughness * float(size - 1), 0.0, float(size - 1))
         i0 = wp.min(int(x), size - 2)
         j0 = wp.min(int(y), size - 2)
+        cell = i0 * 2 * size + 2 * j0
+        next_row = cell + 2 * size
         fx = x - float(i0)
-        fy = y - float(j0)
-        out = wp.vec2(0.0)
-        for c in range(2):
-            low = table[i0, 2 * j0 + c] * (1.0 - fx) + table[i0 + 1, 2 * j0 + c] * fx
-            high = table[i0, 2 * j0 + 2 + c] * (1.0 - fx) + table[i0 + 1, 2 * j0 + 2 + c] * fx
-            out[c] = low * (1.0 - fy) + high * fy
-        return out
+        low = wp.lerp(pair(cell), pair(next_row), fx)
+        high = wp.lerp(pair(cell + 2), pair(next_row + 2), fx)
+        return wp.lerp(low, high, y - float(j0))
+
+    @wp.func
+    def column(j: int) -> wp.vec4:
+        return wp.vec4(means(j), means(size + j), means(2 * size + j), means(3 * size + j))
 
     @wp.func
     def averages(roughness: float) -> wp.vec4:
         y = wp.clamp(roughness * float(size - 1), 0.0, float(size - 1))
         j0 = wp.min(int(y), size - 2)
-        fy = y - float(j0)
-        out = wp.vec4(0.0)
-        for c in range(4):
-            out[c] = means[c, j0] * (1.0 - fy) + means[c, j0 + 1] * fy
-        return out
+        return wp.lerp(column(j0), column(j0 + 1), y - float(j0))
 
     return lookup, averages
 
@@ -370,13 +383,10 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
     @wp.func
     def albedo_share(f0: wp.vec3, f90: wp.vec3, n_dot_v: float, n_dot_l: float, roughness: float) -> wp.vec3:
         """(1 - E(v))(1 - E(l)) / (1 - E_avg) per channel (Kelemen & Szirmay-Kalos 2001)."""
-        out_v = wp.vec3(1.0) - lobe_albedo(f0, f90, n_dot_v, roughness)
-        out_l = wp.vec3(1.0) - lobe_albedo(f0, f90, n_dot_l, roughness)
-        rest = wp.vec3(1.0) - mean_lobe_albedo(f0, f90, roughness)
-        out = wp.vec3(0.0)
-        for c in range(3):
-            out[c] = wp.max(out_v[c], 0.0) * wp.max(out_l[c], 0.0) / wp.max(rest[c], MIN_DIFFUSE_SHARE)
-        return out
+        left_v = wp.max(wp.vec3(1.0) - lobe_albedo(f0, f90, n_dot_v, roughness), wp.vec3(0.0))
+        left_l = wp.max(wp.vec3(1.0) - lobe_albedo(f0, f90, n_dot_l, roughness), wp.vec3(0.0))
+        rest = wp.max(wp.vec3(1.0) - mean_lobe_albedo(f0, f90, roughness), wp.vec3(MIN_DIFFUSE_SHARE))
+        return wp.cw_div(wp.cw_mul(left_v, left_l), rest)
 
     @wp.func
     def diffuse_term(n_dot_v: float, n_dot_l: float, l_dot_h: float, roughness: float) -> float:

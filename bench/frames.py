@@ -1,0 +1,110 @@
+"""Whole shaded frames by visibility path and shadow technique, against one Embree primary-ray pass.
+
+    python bench/frames.py [--repeats 5] [--size 1024]
+
+Scenes: the 81,920-triangle icosphere and the 69,451-triangle Stanford bunny, each standing on a
+two-triangle floor (so that it casts a shadow and shadows are not compiled out), one point
+light, spp 1, every core. Frames: visibility "raycast" and "raster", each with shadows by rays,
+by maps reused from the previous frame (a moving camera), and by maps rendered anew (moving
+lights or geometry), and without shadows. Embree: Open3D's RaycastingScene.cast_rays on the same
+primary rays (when open3d is installed), the issue's yardstick: a full shaded frame with
+ray-traced shadows should take no longer than that one pass. Medians of --repeats runs after a
+warm-up, in one run. Writes bench/results/frames.{md,json}.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+import numpy as np
+import trimesh
+import warp as wp
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import median_time, write_results  # noqa: E402
+
+import pbrwarp as pw  # noqa: E402
+from pbrwarp.kernels import stages  # noqa: E402
+from pbrwarp.meshes import bunny, icosphere  # noqa: E402
+from pbrwarp.render import _camera_data  # noqa: E402
+
+VARIANTS = (
+    ("raycast", "rays"), ("raster", "rays"), ("raycast", "map reused"), ("raster", "map reused"),
+    ("raster", "map rebuilt"), ("raster", False),
+)
+
+
+def scene_on_floor(mesh):
+    """``mesh`` scaled to unit radius on a floor, a point light above and to the side."""
+    mesh = mesh.copy()
+    mesh.apply_translation(-mesh.bounding_box.centroid)
+    mesh.apply_scale(1.0 / np.max(np.linalg.norm(mesh.vertices, axis=1)))
+    scene = pw.Scene()
+    scene.add_mesh(mesh, pw.Material(base_color=(0.8, 0.6, 0.4), roughness=0.4))
+    floor = trimesh.Trimesh([[-4, -1, -4], [4, -1, -4], [4, -1, 4], [-4, -1, 4]], [[0, 2, 1], [0, 3, 2]])
+    scene.add_mesh(floor, pw.Material(base_color=(0.7, 0.7, 0.7)))
+    scene.add_light(pw.PointLight(position=(2.0, 3.0, 2.0), intensity=40.0))
+    return scene, pw.Camera.look_at(eye=(0.0, 0.8, 3.2), target=(0.0, -0.2, 0.0))
+
+
+def embree_ms(scene, camera, size, repeats):
+    try:
+        import open3d as o3d
+    except ImportError:
+        return None
+    raycaster = o3d.t.geometry.RaycastingScene()
+    for prim in scene.primitives:
+        raycaster.add_triangles(o3d.core.Tensor(prim.positions.astype(np.float32)),
+                                o3d.core.Tensor(prim.faces.astype(np.uint32)))
+    cam = _camera_data(camera, size, size)
+    dirs = wp.empty(size * size, dtype=wp.vec3, device="cpu")
+    wp.launch(stages.primary_ray_directions, dim=size * size, inputs=[cam, dirs], device="cpu")
+    rays = np.hstack([np.broadcast_to(np.asarray(camera.eye, np.float32), (size * size, 3)), dirs.numpy()])
+    rays = o3d.core.Tensor(rays.astype(np.float32))
+    return 1e3 * median_time(lambda: raycaster.cast_rays(rays), repeats)
+
+
+def frame_ms(scene, camera, size, repeats, visibility, shadows):
+    mode = "map" if shadows and shadows.startswith("map") else shadows
+
+    def frame():
+        if shadows == "map rebuilt":
+            scene.__dict__.pop("_shadow_maps", None)
+        pw.render(scene, camera, width=size, height=size, visibility=visibility, shadows=mode, progress=False)
+
+    return 1e3 * median_time(frame, repeats)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--size", type=int, default=1024)
+    args = ap.parse_args(argv)
+    wp.config.log_level = wp.LOG_WARNING
+    rows = []
+    for name, mesh in (("icosphere (81,920 tris)", icosphere(6)), ("stanford bunny (69,451 tris)", bunny())):
+        scene, camera = scene_on_floor(mesh)
+        row = {"scene": name, "embree_ms": embree_ms(scene, camera, args.size, args.repeats)}
+        for visibility, shadows in VARIANTS:
+            row[f"{visibility}, shadows {shadows or 'off'}"] = frame_ms(scene, camera, args.size, args.repeats,
+                                                                      visibility, shadows)
+        rows.append(row)
+        print(row, file=sys.stderr)
+    keys = [f"{v}, shadows {s or 'off'}" for v, s in VARIANTS]
+    lines = [f"| scene ({args.size}², 1 point light) | " + " | ".join(f"{k} ms" for k in keys) + " | Embree primary pass ms |",
+             "|---|" + "---|" * (len(keys) + 1)]
+    for r in rows:
+        embree = f"{r['embree_ms']:.1f}" if r["embree_ms"] is not None else "n/a"
+        lines.append(f"| {r['scene']} | " + " | ".join(f"{r[k]:.1f}" for k in keys) + f" | {embree} |")
+    lines += ["", "Whole frames (spp 1, every core, medians). \"map reused\": the maps rendered for an earlier "
+              "frame serve this one (same lights and geometry); \"map rebuilt\": rendered for this frame, "
+              "six 1024² cube faces for the point light."]
+    command = "python bench/frames.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + \
+        (f" --size {args.size}" if args.size != 1024 else "")
+    write_results("frames", command, {"rows": rows}, "\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
