@@ -8,6 +8,7 @@
 from .brdf import BRDF
 from .camera import Camera
 from .diagnostics import FrameCheck, check
+from .environment import Environment
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError
 from .frame import Frame
 from .lights import DirectionalLight, PointLight, SpotLight
@@ -19,7 +20,7 @@ from .shadow_maps import ShadowMap
 from .textures import Texture
 
 __all__ = [
-    "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Features", "Frame", "FrameCheck", "InputError",
+    "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "InputError",
     "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "Scene", "ShadowMap", "SpotLight",
     "Texture", "check", "explain", "render",
 ]

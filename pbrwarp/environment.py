@@ -18,12 +18,11 @@ bindings read only .exr). Its .hdr pixels are bit-identical to OpenCV's.
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 
 from . import validate
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
+from .parallel import run, thread_count
 
 LOADABLE = (".hdr", ".exr")
 # OpenImageIO's names of the formats accepted (by content, whatever the extension says)
@@ -160,13 +159,14 @@ class Environment:
         from .kernels.sh import project_sh
 
         if self._data is None:
-            workers = threads or os.cpu_count() or 1
-            with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pbrwarp-env") as pool:
-                def run_bands(launch, rows):
-                    bounds = np.linspace(0, rows, min(workers, rows) + 1).astype(int)
-                    list(pool.map(lambda k: launch(bounds[k], bounds[k + 1] - bounds[k]), range(len(bounds) - 1)))
+            workers = thread_count(threads)
 
-                levels, _ = prefilter(self.texels, run_bands)
+            def run_bands(launch, rows):
+                bounds = np.linspace(0, rows, min(workers, rows) + 1).astype(int)
+                bands = [(int(a), int(b - a)) for a, b in zip(bounds[:-1], bounds[1:])]
+                list(run(lambda band: launch(*band), bands, workers))
+
+            levels, _ = prefilter(self.texels, run_bands)
             data = EnvironmentData()
             data.radiance = levels
             # level 0, the source, starts the flat texel array
