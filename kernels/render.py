@@ -8,7 +8,9 @@ from typing import Any
 
 import warp as wp
 
+from .ambient import ambient_for
 from .brdf import brdf_for
+from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
 from .lights import light_sampler
 from .normal_mapping import perturb_normal
@@ -99,6 +101,11 @@ def render_kernel(features):
     brdf = brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf))
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
     lit = f.point_lights or f.directional_lights or f.spot_lights
+    ibl = f.environment
+    if ibl:
+        ambient = ambient_for(ibl.method, ibl.fresnel, ibl.samples, ibl.shadowed, f.brdf.energy == "multiscatter",
+                              f.brdf.coupling != "none" and f.diffuse and f.specular, brdf)
+    shaded = lit or bool(ibl)
 
     @wp.func
     def is_culled(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
@@ -112,15 +119,15 @@ def render_kernel(features):
         return False
 
     @wp.func
-    def shade(scene: SceneData, maps: ShadowMaps, h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3,
-              n: wp.vec3) -> wp.vec3:
+    def shade(scene: SceneData, maps: ShadowMaps, env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit,
+              mat: MaterialData, uv: wp.vec2, view: wp.vec3, n: wp.vec3, seed: int, stream: int) -> wp.vec3:
         radiance = wp.vec3(0.0)
         if wp.static(f.emission):
             radiance = mat.emissive
             if wp.static(f.emissive_texture):
                 em = texture_or_one(scene, mat.emissive_texture, uv)
                 radiance = wp.cw_mul(radiance, wp.vec3(em[0], em[1], em[2]))
-        if wp.static(lit):
+        if wp.static(shaded):
             base = wp.vec3(mat.base_color[0], mat.base_color[1], mat.base_color[2])
             if wp.static(f.vertex_colors):
                 vertex_color = interpolate(scene.colors, h)
@@ -156,6 +163,14 @@ def render_kernel(features):
                         continue
                 fr = brdf(n, view, ls.to_light, base, metallic, roughness, mat.specular, mat.ior_eta, mat.ior_kappa)
                 radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
+            if wp.static(bool(ibl)):
+                from_environment = ambient(scene.mesh, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
+                                           roughness, mat.specular, mat.ior_eta, mat.ior_kappa, seed, stream)
+                if wp.static(f.occlusion_texture):
+                    if mat.occlusion_texture != NO_TEXTURE:
+                        occlusion = texture_or_one(scene, mat.occlusion_texture, uv)[0]
+                        from_environment = from_environment * (1.0 + mat.occlusion_strength * (occlusion - 1.0))
+                radiance = radiance + from_environment
         return radiance
 
     @wp.func
@@ -213,6 +228,8 @@ def render_kernel(features):
         out_normal: wp.array2d(dtype=wp.vec3),
         vbuffer: wp.array2d(dtype=wp.uint64),
         maps: ShadowMaps,
+        env: EnvironmentData,
+        dfg: wp.array2d(dtype=wp.vec2),
     ):
         tid = wp.tid()
         px = x0 + tid % tile_width
@@ -228,6 +245,7 @@ def render_kernel(features):
                 offset = multi_jittered_sample(s, grid_m, grid_n, pixel_seed)
             d = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1])
             origin = cam.eye
+            hits_before = hits
             face, u, v = primary_hit(scene, vbuffer, py, px * spp + s, origin, d)
             for _ in range(MAX_PASS_THROUGH):
                 if face < 0:
@@ -246,17 +264,23 @@ def render_kernel(features):
                         v = q.v
                         continue
                 n = wp.vec3(0.0)
-                if wp.static(lit or f.aovs):
+                if wp.static(shaded or f.aovs):
                     n = shading_normal(scene, h, mat, uv)
-                radiance = radiance + shade(scene, maps, h, mat, uv, -d, n)
+                radiance = radiance + shade(scene, maps, env, dfg, h, mat, uv, -d, n, pixel_seed, s)
                 hits = hits + 1
                 if wp.static(f.aovs):
                     normal_sum = normal_sum + n
                     depth = wp.min(depth, wp.length(h.p - cam.eye))
                 break
+            if wp.static(f.environment_background):
+                if hits == hits_before:
+                    radiance = radiance + environment_radiance(env, d)
         inv_spp = 1.0 / float(spp)
         alpha = float(hits) * inv_spp
-        out_rgb[py, px] = clamp_to_float32_max(radiance * inv_spp + background * (1.0 - alpha))
+        seen_behind = background * (1.0 - alpha)
+        if wp.static(f.environment_background):
+            seen_behind = wp.vec3(0.0)
+        out_rgb[py, px] = clamp_to_float32_max(radiance * inv_spp + seen_behind)
         out_alpha[py, px] = alpha
         if wp.static(f.aovs):
             if hits > 0:

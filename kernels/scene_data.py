@@ -18,6 +18,8 @@ class MaterialData:
     roughness: float
     specular: float
     normal_scale: float
+    # glTF occlusion: ambient light is scaled by 1 + strength (texel - 1)
+    occlusion_strength: float
     alpha_cutoff: float
     # complex IOR eta + i kappa of a metal for the exact Fresnel rung; eta = 0 when none is given
     ior_eta: wp.vec3
@@ -31,6 +33,7 @@ class MaterialData:
     metallic_roughness_texture: int
     normal_texture: int
     emissive_texture: int
+    occlusion_texture: int
 
 
 @wp.struct

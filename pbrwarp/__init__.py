@@ -11,6 +11,7 @@ from .diagnostics import FrameCheck, check
 from .environment import Environment
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError
 from .frame import Frame
+from .ibl import IBL
 from .lights import DirectionalLight, PointLight, SpotLight
 from .materials import Material
 from .features import Features
@@ -20,7 +21,7 @@ from .shadow_maps import ShadowMap
 from .textures import Texture
 
 __all__ = [
-    "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "InputError",
+    "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "IBL", "InputError",
     "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "Scene", "ShadowMap", "SpotLight",
     "Texture", "check", "explain", "render",
 ]

@@ -213,6 +213,11 @@ def build_parser() -> argparse.ArgumentParser:
                        help="BRDF preset (default balanced; see the README's accuracy table)")
         p.add_argument("--visibility", choices=("auto", "raycast", "raster"), default="auto",
                        help="primary visibility: ray cast, rasterized, or the cheaper by a cost model (default)")
+        p.add_argument("--env", metavar="HDR", default=None,
+                       help="light the scene with an equirectangular .hdr/.exr environment, also shown as the "
+                            "background unless --background is given (needs pip install 'pbrwarp[env]')")
+        p.add_argument("--env-intensity", type=_finite_float("environment intensity"), default=1.0, metavar="X",
+                       help="scale of the environment's radiance (default 1)")
         p.add_argument("--explain", action="store_true",
                        help="print which effects are simulated and why the others are not, then render")
 
@@ -287,15 +292,22 @@ def _shoulder_light(camera: Camera) -> DirectionalLight:
     return DirectionalLight(direction=tuple(forward - 0.7 * up - 0.4 * right), intensity=DEFAULT_KEY_LUX)
 
 
+def _load_environment(scene, args) -> None:
+    if args.env is not None:
+        from .environment import Environment
+
+        scene.environment = Environment.load(args.env, intensity=args.env_intensity)
+
+
 def _render_and_save(scene, camera, args, background) -> None:
     from .render import explain, render
 
     width, height = args.size
     options = dict(width=width, height=height, spp=args.spp, shadows=args.shadows, quality=args.quality,
-                   visibility=args.visibility)
+                   visibility=args.visibility, background=background)
     if args.explain:
         print(explain(scene, **options))
-    frame = render(scene, camera, threads=args.threads, background=background, **options)
+    frame = render(scene, camera, threads=args.threads, **options)
     frame.save(args.output, exposure=args.exposure, tonemap=args.tonemap, transparent=args.transparent)
 
 
@@ -307,11 +319,12 @@ def cmd_render(args) -> int:
     camera = _choose_camera(scene, args)
     for light in args.light:
         scene.add_light(light)
-    if not scene.lights:
+    _load_environment(scene, args)
+    if not scene.lights and scene.environment is None:
         scene.add_light(_shoulder_light(camera))
         _note(f"note: the scene has no lights; added a {DEFAULT_KEY_LUX:g} lux directional light "
               "from over the camera's shoulder (use --light to choose your own)")
-    _render_and_save(scene, camera, args, args.background or (0.0, 0.0, 0.0))
+    _render_and_save(scene, camera, args, args.background)
     return 0
 
 
@@ -320,7 +333,8 @@ def cmd_demo(args) -> int:
 
     _check_output(args.output, args.transparent)
     scene, camera = demo_scene()
-    _render_and_save(scene, camera, args, args.background or DEMO_BACKGROUND)
+    _load_environment(scene, args)
+    _render_and_save(scene, camera, args, args.background or (None if scene.environment else DEMO_BACKGROUND))
     return 0
 
 
@@ -365,7 +379,7 @@ def _main(argv) -> int:
             return exit_.code if isinstance(exit_.code, int) else 0
         command = {"render": cmd_render, "demo": cmd_demo}[args.command]
         return command(args)
-    except (UsageError, PbrwarpError, OSError) as err:
+    except (UsageError, PbrwarpError, OSError, ImportError) as err:
         message = " ".join(str(err).split()) or type(err).__name__
         print(f"{PROG}: error: {message}", file=sys.stderr)
         return EXIT_USAGE

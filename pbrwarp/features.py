@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .brdf import BRDF
+from .ibl import IBL
 from . import raster
 from .errors import InputError
 from .shadow_maps import shadow_mode
@@ -42,6 +43,11 @@ class Features:
     aovs: bool = True
     # primary visibility: "raycast" (a BVH query per camera sample) or "raster" (a visibility buffer)
     visibility: str = "raycast"
+    # environment lighting: the IBL rungs (pbrwarp.IBL), or False without an environment
+    environment: object = IBL()
+    occlusion_texture: bool = True
+    # misses show the environment rather than a constant background
+    environment_background: bool = True
     # the model of each BRDF term
     brdf: BRDF = BRDF()
 
@@ -50,11 +56,13 @@ class Features:
         return self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture or self.normal_mapping
 
     @classmethod
-    def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), shadows="rays") -> "Features":
+    def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), shadows="rays", ibl: IBL = IBL(),
+                   environment_background: bool = True) -> "Features":
         """Every effect compiled in and primary rays ray cast: the unspecialized kernel, the
-        reference for specialization. Sampling, outputs, BRDF and the shadow technique follow the
-        options."""
-        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, shadows=shadow_mode(shadows)[0])
+        reference for specialization. Sampling, outputs, BRDF, the shadow technique, the IBL rungs
+        and what misses show follow the options."""
+        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, shadows=shadow_mode(shadows)[0], environment=ibl,
+                   environment_background=environment_background)
 
 
 @dataclass(frozen=True)
@@ -102,7 +110,7 @@ def _visibility(mode: str, triangles: int, samples: int) -> tuple[str, str]:
 
 
 def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "auto",
-           samples: int = 480_000) -> list[Decision]:
+           samples: int = 480_000, ibl: IBL = IBL(), background_given: bool = False) -> list[Decision]:
     """Every effect with whether the render simulates it and why, in the order explain prints."""
     prims = scene.primitives
     rows = gpu.material_rows
@@ -127,7 +135,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     for name, kind, label in (("point_lights", POINT, "point light"), ("directional_lights", DIRECTIONAL, "directional light"),
                               ("spot_lights", SPOT, "spot light")):
         add(name, count[kind], _count(count[kind], label) if count[kind] else f"no {label}s")
-    if not scene.lights:
+    if not scene.lights and scene.environment is None:
         add("diffuse", False, "no lights: only emission and the background")
         add("specular", False, "no lights: no reflection")
     else:
@@ -150,6 +158,19 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     else:
         decisions.append(Decision("shadows", "rays", f"shadow rays: {len(scene.lights)} per hit, against "
                                   f"{scene.triangle_count:,} triangles"))
+    environment = scene.environment
+    if environment is None:
+        add("environment", False, "no environment lighting: scene.environment is None")
+        add("occlusion_texture", False, "no occlusion textures read: they scale environment light only")
+        add("environment_background", False, "misses show the background colour")
+    else:
+        decisions.append(Decision("environment", ibl, f"environment lighting ({environment!r}): {ibl.describe()}"))
+        present, why = slot("occlusion_texture", "occlusion texture")
+        if ibl.shadowed:
+            present, why = False, "no occlusion textures: the scene itself occludes the traced environment directions"
+        add("occlusion_texture", present, why)
+        add("environment_background", not background_given,
+            "misses show the background colour given" if background_given else "misses show the environment")
     present, why = slot("base_color_texture", "base colour texture")
     add("base_color_texture", present, why)
     present, why = slot("metallic_roughness_texture", "metallic-roughness texture")

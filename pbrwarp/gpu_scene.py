@@ -161,6 +161,8 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.metallic_roughness_texture = slot_index.get("metallic_roughness_texture", -1)
     row.normal_texture = slot_index.get("normal_texture", -1)
     row.emissive_texture = slot_index.get("emissive_texture", -1)
+    row.occlusion_texture = slot_index.get("occlusion_texture", -1)
+    row.occlusion_strength = mat.occlusion_strength
     return row
 
 

@@ -3,6 +3,7 @@ thread pool (Warp CPU launches run on one thread and release the GIL)."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -15,18 +16,41 @@ from .errors import InputTypeError
 from .features import Features, decide, describe, scene_features
 from .frame import Frame
 from .gpu_scene import upload
+from .ibl import IBL, ibl_for_quality
 from .parallel import run, thread_count
 from .raster import visibility_buffer
 from .shadow_maps import build as build_shadow_maps, no_shadow_maps, shadow_mode
 from .scene import Scene
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
+from pbrwarp.kernels.dfg import dfg_table
+from pbrwarp.kernels.ibl import EnvironmentData
 from pbrwarp.kernels.render import render_kernel
 
 # Launches per thread, each a contiguous band of rows. In trials on 2 cores (the bench/kernels.py
 # scenes) 4 per thread scaled best: more bands add GIL-held Python per launch, fewer leave a
 # thread idle at the end, and interleaving the threads' rows loses ray coherence.
 LAUNCHES_PER_THREAD = 4
+
+
+def _environment_arguments(scene: Scene, threads):
+    """The render kernel's environment and DFG table: the scene's, or an inert black one for the
+    all-effects kernel of a scene without an environment."""
+    environment = scene.environment if scene.environment is not None else _black_environment()
+    return environment.data(threads), dfg_table()
+
+
+@functools.cache
+def _black_environment():
+    from .environment import Environment
+
+    return Environment.uniform((0.0, 0.0, 0.0))
+
+
+@functools.cache
+def _no_environment():
+    """Placeholders for kernels compiled without environment lighting (never read)."""
+    return EnvironmentData(), wp.zeros((2, 2), dtype=wp.vec2, device="cpu")
 
 
 def _stratification_grid(spp: int) -> tuple[int, int]:
@@ -71,7 +95,7 @@ def render(
     spp: int = 1,
     threads: int | None = None,
     shadows=True,
-    background=(0.0, 0.0, 0.0),
+    background=None,
     seed: int = 0,
     progress: bool | None = None,
     aovs: bool = True,
@@ -79,6 +103,7 @@ def render(
     quality: str | None = None,
     brdf: BRDF | None = None,
     visibility: str = "auto",
+    ibl: IBL | None = None,
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
@@ -88,7 +113,8 @@ def render(
     traces one shadow ray per light and sample (the reference); "map" or a :class:`ShadowMap`
     looks shadows up in depth maps rasterized from each light (faster, approximate); False
     renders none. ``background`` is the linear radiance where no surface is
-    hit (``frame.alpha`` records coverage for transparent output). ``progress``: None shows a bar
+    hit (``frame.alpha`` records coverage for transparent output); by default the scene's
+    environment where it has one, else black. ``progress``: None shows a bar
     (if tqdm is installed) for renders longer than about a second, False never. ``aovs=False``
     skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are then None).
     ``specialize=False`` runs the kernel with every effect compiled in, and ray-cast primary
@@ -98,7 +124,9 @@ def render(
     finds what each camera sample sees: "raycast" (a BVH query per sample), "raster" (a
     rasterized visibility buffer, then the same ray-triangle test on the triangle it names, so
     both shade identically where they pick the same triangle), or "auto" (the cheaper by a cost
-    model measured in bench/visibility.py). :func:`explain` says what is simulated.
+    model measured in bench/visibility.py). ``ibl`` (:class:`IBL`) picks how the scene's
+    ``environment`` lights it (the ``quality`` preset's rungs otherwise). :func:`explain` says
+    what is simulated.
     """
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
@@ -107,7 +135,8 @@ def render(
     spp = validate.positive_int(spp, "spp")
     if threads is not None:
         threads = validate.positive_int(threads, "threads")
-    background = validate.colour(background, "background")
+    background_given = background is not None
+    background = validate.colour(background if background_given else (0.0, 0.0, 0.0), "background")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise InputTypeError(f"seed must be an integer, got {seed!r}")
     if camera is None:
@@ -115,12 +144,14 @@ def render(
     elif not isinstance(camera, Camera):
         raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
 
+    ibl = ibl_for_quality(quality, ibl)
     brdf = brdf_for_quality(quality, brdf)
     gpu = upload(scene)
-    options = dict(shadows=shadows, spp=spp, aovs=aovs, brdf=brdf, visibility=visibility, samples=width * height * spp)
+    options = dict(shadows=shadows, spp=spp, aovs=aovs, brdf=brdf, visibility=visibility, samples=width * height * spp,
+                   ibl=ibl, background_given=background_given)
     features = scene_features(scene, gpu, **options)
     if not specialize:
-        features = Features.everything(spp, aovs, brdf, shadows)
+        features = Features.everything(spp, aovs, brdf, shadows, ibl, features.environment_background)
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
@@ -133,6 +164,7 @@ def render(
     seed = int(seed) % (2**31)
     maps = (build_shadow_maps(scene, gpu, shadow_mode(shadows)[1], threads) if features.shadows == "map"
             else no_shadow_maps())
+    env, dfg = _environment_arguments(scene, threads) if features.environment else _no_environment()
     if features.visibility == "raster":
         vbuffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, spp, grid_m, grid_n, seed, threads)
     else:
@@ -142,7 +174,7 @@ def render(
         x0, y0, tile_width, tile_height = band
         wp.launch(kernel, dim=tile_width * tile_height, device="cpu",
                   inputs=[gpu.data, cam, spp, grid_m, grid_n, seed, x0, y0, tile_width, bg,
-                          out_rgb, out_alpha, out_depth, out_normal, vbuffer, maps])
+                          out_rgb, out_alpha, out_depth, out_normal, vbuffer, maps, env, dfg])
 
     workers = thread_count(threads)
     work = bands(width, height, LAUNCHES_PER_THREAD * workers)
@@ -167,7 +199,7 @@ def render(
 
 def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
             brdf: BRDF | None = None, visibility: str = "auto", width: int = 800, height: int = 600,
-            **_render_options) -> str:
+            ibl: IBL | None = None, background=None, **_render_options) -> str:
     """Which effects :func:`render` with these options simulates for ``scene``, and why each
     absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow itself ...")."""
     if not isinstance(scene, Scene):
@@ -175,4 +207,5 @@ def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality
     spp = validate.positive_int(spp, "spp")
     samples = validate.positive_int(width, "width") * validate.positive_int(height, "height") * spp
     return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf),
-                           visibility=visibility, samples=samples))
+                           visibility=visibility, samples=samples, ibl=ibl_for_quality(quality, ibl),
+                           background_given=background is not None))

@@ -128,6 +128,21 @@ class Scene:
         self.primitives: list[Primitive] = []
         self.lights: list = []
         self.cameras: list[Camera] = []
+        self._environment = None
+
+    @property
+    def environment(self):
+        """The :class:`pbrwarp.Environment` lighting the scene from every direction (and shown
+        where no surface is hit, unless ``render(background=...)`` says otherwise), or None."""
+        return self._environment
+
+    @environment.setter
+    def environment(self, value):
+        from .environment import Environment
+
+        if value is not None and not isinstance(value, Environment):
+            raise InputTypeError(f"Scene.environment must be a pbrwarp.Environment or None, got {type(value).__name__}")
+        self._environment = value
 
     # ------------------------------------------------------------------ building
     def add_mesh(self, mesh, material: Material | None = None, transform=None) -> Primitive:

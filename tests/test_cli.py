@@ -71,6 +71,18 @@ def test_shadow_maps_raster_and_quality_options(out_dir, capsys):
     assert np.asarray(Image.open(out)).shape == (36, 48, 3)
 
 
+def test_environment_option(out_dir, capsys):
+    from pbrwarp.meshes import ASSETS
+
+    hdr = ASSETS / "hdr" / "venice_sunset_1k.hdr"
+    out = out_dir / "demo.png"
+    assert main(["demo", "-o", str(out), "--size", "48x27", "--env", str(hdr), "--env-intensity", "0.5", "--explain"]) == 0
+    assert "environment lighting" in capsys.readouterr().out
+    assert np.asarray(Image.open(out))[0, 0].max() > 0  # the sky behind the spheres
+    assert main(["demo", "-o", str(out), "--env", str(out_dir / "missing.hdr")]) == 2
+    assert "missing.hdr" in capsys.readouterr().err
+
+
 def test_transparent_png_has_alpha(obj_file, out_dir):
     out = out_dir / "ball.png"
     assert main(["render", str(obj_file), "-o", str(out), "--size", "32x24", "--transparent",

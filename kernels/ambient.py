@@ -1,0 +1,107 @@
+"""Light from the environment reflected at a surface point: the split-sum model (SH irradiance for
+diffuse, prefiltered radiance times a DFG table for specular) or its Monte Carlo reference, built
+per IBL rung so the render kernel holds only the one in use."""
+
+import functools
+
+import warp as wp
+
+from .brdf import D_GGX, PI, specular_f0, specular_f90
+from .dfg import dfg_lookup
+from .direction_sampling import (orthonormal_basis, pdf_cosine_hemisphere, pdf_ggx_vndf_reflection,
+                                 sample_cosine_hemisphere, sample_ggx_vndf)
+from .ibl import (EnvironmentData, F_SchlickRoughness, environment_irradiance, environment_radiance,
+                  prefiltered_radiance, split_sum_specular)
+from .robust import MIN_COSINE, RAY_FAR, offset_ray_origin
+
+wp.set_module_options({"enable_backward": False})
+
+# Random-number stream offset of the environment directions: the sub-pixel jitter of sample s uses
+# stream s of the pixel's seed, so these start well above any sample count.
+ENVIRONMENT_STREAM = wp.constant(1 << 24)
+
+
+@functools.cache
+def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multiscatter: bool, coupled: bool, brdf):
+    """ambient(mesh, env, dfg, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
+    kappa, seed, stream) -> radiance reflected towards v of the environment's light (unoccluded; the caller
+    applies the occlusion texture). ``brdf`` is the render kernel's own BRDF, which the Monte Carlo
+    rung integrates; ``multiscatter`` and ``coupled`` (the diffuse lobe gets only what the specular
+    lobe leaves) make the split sum follow the same energy rungs."""
+    lagarde = fresnel == "lagarde"
+
+    @wp.func
+    def split_sum(env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), n: wp.vec3, v: wp.vec3,
+                  base_color: wp.vec3, metallic: float, roughness: float, specular: float) -> wp.vec3:
+        n_dot_v = wp.max(wp.dot(n, v), MIN_COSINE)
+        f0 = specular_f0(base_color, metallic, specular)
+        f90 = specular_f90(metallic, specular)
+        ab = dfg_lookup(dfg, n_dot_v, roughness)
+        if wp.static(lagarde):
+            f0 = F_SchlickRoughness(f0, f90, n_dot_v, roughness)
+        albedo = f0 * ab[0] + f90 * ab[1]
+        if wp.static(multiscatter):
+            albedo = wp.cw_mul(albedo, wp.vec3(1.0) + f0 * (1.0 / wp.max(ab[0] + ab[1], 1.0e-3) - 1.0))
+        prefiltered = prefiltered_radiance(env, 2.0 * n_dot_v * n - v, roughness)
+        out = wp.vec3(0.0)
+        if wp.static(multiscatter):
+            out = wp.cw_mul(prefiltered, albedo)
+        else:
+            out = split_sum_specular(prefiltered, f0, f90, ab)
+        diffuse_share = wp.vec3(1.0)
+        if wp.static(coupled):
+            diffuse_share = wp.max(wp.vec3(1.0) - albedo, wp.vec3(0.0))
+            if wp.static(lagarde):
+                diffuse_share = wp.vec3(1.0) - f0
+        diffuse = wp.cw_mul(diffuse_share, base_color) * ((1.0 - metallic) / PI)
+        return out + wp.cw_mul(diffuse, environment_irradiance(env, n))
+
+    @wp.func
+    def monte_carlo(mesh: wp.uint64, env: EnvironmentData, p: wp.vec3, p_error: wp.vec3, ng: wp.vec3, n: wp.vec3,
+                    v: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float, specular: float,
+                    eta: wp.vec3, kappa: wp.vec3, seed: int, stream: int) -> wp.vec3:
+        """Half the directions cosine-weighted, half GGX visible normals, weighted by the balance
+        heuristic (the mixture pdf; Veach 1997): unbiased for every BRDF rung."""
+        frame = orthonormal_basis(n)
+        v_local = wp.transpose(frame) * v
+        if v_local[2] <= 0.0:
+            return wp.vec3(0.0)
+        alpha = roughness * roughness
+        state = wp.rand_init(seed, ENVIRONMENT_STREAM + stream)
+        total = wp.vec3(0.0)
+        for k in range(samples):
+            u = wp.vec2(wp.randf(state), wp.randf(state))
+            l_local = wp.vec3(0.0)
+            if k % 2 == 0:
+                l_local = sample_cosine_hemisphere(u)
+            else:
+                h = sample_ggx_vndf(v_local, alpha, u)
+                l_local = 2.0 * wp.dot(v_local, h) * h - v_local
+            if l_local[2] <= 0.0:
+                continue
+            l = frame * l_local
+            # light from below the geometric surface cannot arrive
+            if wp.dot(ng, l) <= 0.0:
+                continue
+            h_local = wp.normalize(v_local + l_local)
+            d = D_GGX(alpha, h_local[2], h_local[0] * h_local[0] + h_local[1] * h_local[1])
+            pdf = 0.5 * pdf_cosine_hemisphere(l_local[2]) + 0.5 * pdf_ggx_vndf_reflection(d, v_local[2], alpha)
+            if pdf <= 0.0:
+                continue
+            if wp.static(shadowed):
+                if wp.mesh_query_ray_anyhit(mesh, offset_ray_origin(p, p_error, ng, l), l, RAY_FAR):
+                    continue
+            f = brdf(n, v, l, base_color, metallic, roughness, specular, eta, kappa)
+            total = total + wp.cw_mul(f, environment_radiance(env, l)) * (l_local[2] / pdf)
+        return total / float(samples)
+
+    @wp.func
+    def ambient(mesh: wp.uint64, env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), p: wp.vec3, p_error: wp.vec3,
+                ng: wp.vec3, n: wp.vec3, v: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
+                specular: float, eta: wp.vec3, kappa: wp.vec3, seed: int, stream: int) -> wp.vec3:
+        if wp.static(method == "monte_carlo"):
+            return monte_carlo(mesh, env, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
+                               kappa, seed, stream)
+        return split_sum(env, dfg, n, v, base_color, metallic, roughness, specular)
+
+    return ambient
