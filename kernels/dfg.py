@@ -9,7 +9,10 @@ image-based lighting (Karis 2013; seed 001's k_IBL = alpha^2 / 2 with its alpha 
 """
 
 import functools
+import os
+import tempfile
 
+import numpy as np
 import warp as wp
 
 from .direction_sampling import G1_SmithGGX, sample_ggx_vndf
@@ -59,14 +62,39 @@ def integrate_dfg(samples: int, out: wp.array2d(dtype=wp.vec2)):
     out[i, j] = wp.vec2(a, b) / float(samples)
 
 
+# Version of the table's integrator, part of its cache file's name: bump it when the integral changes.
+DFG_TABLE_VERSION = 1
+
+
 @functools.cache
 def dfg_table(size: int = DFG_TABLE_SIZE, samples: int = DFG_SAMPLES) -> wp.array2d:
-    """The (size, size) table of (A, B), integrated once per process: 4096 samples per cell take
-    0.1 s at 32 x 32 on one core, too little to be worth a cache file beside Warp's own cache of
-    the compiled kernel (which saves the ~1 s compile)."""
+    """The (size, size) table of (A, B): integrated once (4096 samples per cell, ~0.1 s at 32 x 32
+    on one core) and cached on disk beside Warp's kernel cache, so later processes only read it."""
+    wp.init()  # sets the kernel cache directory
+    path = os.path.join(wp.config.kernel_cache_dir, f"pbrwarp_dfg_v{DFG_TABLE_VERSION}_{size}x{size}_{samples}.npy")
+    try:
+        table = np.load(path)
+        if table.shape == (size, size, 2) and np.all(np.isfinite(table)):
+            return wp.array(table, dtype=wp.vec2, device="cpu")
+    except (OSError, ValueError):
+        pass
     out = wp.zeros((size, size), dtype=wp.vec2, device="cpu")
     wp.launch(integrate_dfg, dim=(size, size), device="cpu", inputs=[samples, out])
+    _save_atomically(path, out.numpy())
     return out
+
+
+def _save_atomically(path: str, table: np.ndarray) -> None:
+    """Write ``table`` where concurrent readers see the whole file or none (a read-only cache dir
+    is not an error: the table is then recomputed by every process)."""
+    try:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        fd, partial = tempfile.mkstemp(dir=os.path.dirname(path), suffix=".npy.partial")
+        with os.fdopen(fd, "wb") as f:
+            np.save(f, table)
+        os.replace(partial, path)
+    except OSError:
+        pass
 
 
 @wp.func

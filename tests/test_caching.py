@@ -6,6 +6,7 @@ import sys
 import textwrap
 
 import numpy as np
+import warp as wp
 import trimesh
 
 import pbrwarp as pw
@@ -54,3 +55,16 @@ def test_a_new_process_loads_kernels_from_the_disk_cache():
     warm = runs[1].stdout + runs[1].stderr
     assert "render_tile" in warm, warm
     assert "(compiled)" not in warm, warm
+
+
+def test_dfg_table_is_cached_on_disk_and_read_back_exactly():
+    import os
+
+    from pbrwarp.kernels import dfg
+
+    dfg.dfg_table()
+    files = [f for f in os.listdir(wp.config.kernel_cache_dir) if f.startswith(f"pbrwarp_dfg_v{dfg.DFG_TABLE_VERSION}_")]
+    assert files
+    integrated = wp.zeros((dfg.DFG_TABLE_SIZE,) * 2, dtype=wp.vec2, device="cpu")
+    wp.launch(dfg.integrate_dfg, dim=integrated.shape, device="cpu", inputs=[dfg.DFG_SAMPLES, integrated])
+    np.testing.assert_array_equal(dfg.dfg_table.__wrapped__().numpy(), integrated.numpy())
