@@ -188,6 +188,7 @@ def main(argv=None):
                  "ns_per_eval": None})
     rows.append({"family": "shadows", "rung": "shadows=rays (ray traced)", "rel_rmse": 0.0, "per_scene": [0.0] * len(scenes),
                  "flip": 0.0, "ms": frame_ms(), "ns_per_eval": None})
+    ibl_rows(add, render, args.repeats)
     print(f"done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
 
     names = [n for n, _, _ in scenes]
@@ -197,10 +198,13 @@ def main(argv=None):
     for r in rows:
         ns = f"{r['ns_per_eval']:.1f}" if r["ns_per_eval"] is not None else ""
         fl = f"{r['flip']:.4f}" if r["flip"] is not None else "n/a"
+        per_scene = [f"{e:.4f}" for e in r["per_scene"]] if len(r["per_scene"]) == len(names) else [""] * len(names)
         lines.append(f"| {r['family']} | {r['rung']} | {r['ms']:.0f} | {ns} | {r['rel_rmse']:.4f} | {fl} | "
-                     + " | ".join(f"{e:.4f}" for e in r["per_scene"]) + " |")
+                     + " | ".join(per_scene) + " |")
     lines += ["", f"{width}x{height} frames on every core. BRDF and preset rows: error against "
               f"quality=reference ({REFERENCE.describe()}) at the same 4 spp; sampling rows: against 256 spp; "
+              "ibl rows (one scene of their own: a sphere grid on a floor under an HDR, no punctual lights; "
+              "per-scene columns empty, ms for its one frame): against Monte Carlo with 1024 shadowed directions per sample at 4 spp; "
               "shadows rows: against ray-traced shadows; shadow-map times include rasterizing the maps except "
               "where they are reused (a new camera, the same lights and geometry). Times: spp 1, medians, summed over "
               "the four scenes.",
@@ -212,6 +216,42 @@ def main(argv=None):
     write_results("accuracy", command, {"rows": rows, "scenes": names}, "\n".join(lines) + "\n")
     plot(rows, RESULTS / "accuracy.png")
     contact_sheet(sheet, [n for n, _, _ in scenes], RESULTS / "accuracy_differences.png")
+
+
+IBL_RUNGS = (
+    ("split sum (dfg)", pw.IBL()),
+    ("split sum (lagarde Fresnel)", pw.IBL(fresnel="lagarde")),
+    ("monte carlo 16", pw.IBL(method="monte_carlo", samples=16, shadowed=True)),
+    ("monte carlo 64", pw.IBL(method="monte_carlo", samples=64, shadowed=True)),
+    ("monte carlo 256", pw.IBL(method="monte_carlo", samples=256, shadowed=True)),
+    ("monte carlo 256, unshadowed", pw.IBL(method="monte_carlo", samples=256)),
+)
+
+
+def ibl_scene():
+    """The 5 x 5 metallic x roughness sphere grid on a floor under the Venice sunset HDR (or the
+    procedural sky without the shared assets), no punctual lights."""
+    scene = meshes.sphere_grid(5, 5, base_color=(0.9, 0.6, 0.2), subdivisions=3)
+    floor = trimesh.Trimesh([[-8, -6.3, -3], [8, -6.3, -3], [8, -6.3, 3], [-8, -6.3, 3]], [[0, 2, 1], [0, 3, 2]])
+    scene.add_mesh(floor, pw.Material(base_color=(0.5, 0.5, 0.5), roughness=0.8))
+    hdr = ASSETS / "hdr" / "venice_sunset_1k.hdr"
+    try:
+        scene.environment = pw.Environment.load(hdr)
+    except (pw.PbrwarpError, ImportError):
+        scene.environment = pw.Environment.sky()
+    return scene, pw.Camera.frame(scene, direction=(0.0, 0.25, 1.0))
+
+
+def ibl_rows(add, render, repeats):
+    """Environment-lighting rungs against Monte Carlo with 1024 shadowed directions per sample,
+    all at 4 spp and the default BRDF; times are spp 1 frames."""
+    scene, cam = ibl_scene()
+    reference = render(scene, cam, spp=4, ibl=pw.IBL(method="monte_carlo", samples=1024, shadowed=True))
+    covered = reference.alpha > 0
+    for label, ibl in IBL_RUNGS:
+        frame = render(scene, cam, spp=4, ibl=ibl)
+        add("ibl", label, [rel_rmse(frame.rgb, reference.rgb, covered)], [flip(frame, reference)],
+            1e3 * median_time(lambda: render(scene, cam, ibl=ibl), repeats))
 
 
 def difference_image(frame, reference):
@@ -250,7 +290,7 @@ def plot(rows, path):
         return
     colours = {"preset": "black", "diffuse": "tab:green", "distribution": "tab:purple", "geometry": "tab:blue",
                "fresnel": "tab:orange", "energy": "tab:olive", "coupling": "tab:cyan", "model": "tab:pink",
-               "sampling": "tab:red", "shadows": "tab:brown"}
+               "sampling": "tab:red", "shadows": "tab:brown", "ibl": "tab:gray"}
     floor = 1e-4  # the reference itself (error 0) sits on the floor of the log axis
     fig, axes = plt.subplots(1, 2, figsize=(12, 5), dpi=110)
     panels = ((axes[0], [r for r in rows if r["ns_per_eval"] is not None], "ns_per_eval",
