@@ -46,14 +46,17 @@ FRESNEL_SHAPES = {"none": 0, "schlick": 1, "exact": 1, "spherical_gaussian": 2}
 
 @wp.func
 def radical_inverse_base2(k: int) -> float:
-    """Van der Corput's radical inverse of k in base 2: the second Hammersley coordinate."""
-    bits = wp.uint32(k)
-    bits = (bits << wp.uint32(16)) | (bits >> wp.uint32(16))
-    bits = ((bits & wp.uint32(0x55555555)) << wp.uint32(1)) | ((bits & wp.uint32(0xAAAAAAAA)) >> wp.uint32(1))
-    bits = ((bits & wp.uint32(0x33333333)) << wp.uint32(2)) | ((bits & wp.uint32(0xCCCCCCCC)) >> wp.uint32(2))
-    bits = ((bits & wp.uint32(0x0F0F0F0F)) << wp.uint32(4)) | ((bits & wp.uint32(0xF0F0F0F0)) >> wp.uint32(4))
-    bits = ((bits & wp.uint32(0x00FF00FF)) << wp.uint32(8)) | ((bits & wp.uint32(0xFF00FF00)) >> wp.uint32(8))
-    return float(bits) * 2.3283064365386963e-10
+    """Van der Corput's radical inverse of k >= 0 in base 2, the second Hammersley coordinate: k's
+    bits mirrored about the binary point (exact in float32 for k < 2^24)."""
+    bits = k
+    weight = float(0.5)
+    out = float(0.0)
+    while bits > 0:
+        if bits % 2 == 1:
+            out += weight
+        bits = bits / 2
+        weight *= 0.5
+    return out
 
 
 @functools.cache
