@@ -21,7 +21,7 @@ import os
 import numpy as np
 
 from . import validate
-from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
+from .errors import AssetFormatError, InputError, InputTypeError
 from .parallel import run, thread_count
 
 LOADABLE = (".hdr", ".exr")
@@ -101,15 +101,7 @@ class Environment:
     @classmethod
     def load(cls, path, intensity: float = 1.0, rotation: float = 0.0) -> "Environment":
         """Read an equirectangular Radiance .hdr or OpenEXR .exr image (linear radiance)."""
-        path = os.fspath(path)
-        if not os.path.exists(path):
-            raise AssetNotFoundError(f"environment file not found: {path}")
-        if os.path.isdir(path):
-            raise AssetFormatError(f"cannot load {path}: it is a folder, not an environment image")
-        ext = os.path.splitext(path)[1].lower()
-        if ext not in LOADABLE:
-            raise AssetFormatError(f"cannot load {path}: unsupported extension {ext!r} for an environment "
-                                   f"(supported: {', '.join(LOADABLE)}, equirectangular HDR images)")
+        path, _ = validate.readable_file(path, "environment image", LOADABLE, "equirectangular HDR images")
         pixels = _read_hdr_image(path)
         try:
             return cls(pixels, intensity=intensity, rotation=rotation, name=os.path.basename(path))

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from . import validate
 from .camera import Camera
-from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
+from .errors import AssetFormatError, InputError, InputTypeError
 from .lights import DirectionalLight, PointLight, SpotLight
 from .materials import Material
 from .textures import srgb_to_linear
@@ -170,14 +170,7 @@ class Scene:
     def load(cls, path) -> "Scene":
         """Read a .glb/.gltf/.obj/.ply/.stl/.off file (node transforms applied; glTF materials,
         tangents, samplers, lights and cameras kept)."""
-        path = os.fspath(path)
-        if not os.path.exists(path):
-            raise AssetNotFoundError(f"scene file not found: {path}")
-        if os.path.isdir(path):
-            raise AssetFormatError(f"cannot load {path}: it is a folder, not a scene file")
-        ext = os.path.splitext(path)[1].lower()
-        if ext not in LOADABLE:
-            raise AssetFormatError(f"cannot load {path}: unsupported extension {ext!r} (supported: {', '.join(LOADABLE)})")
+        path, ext = validate.readable_file(path, "scene file", LOADABLE, "meshes and glTF scenes")
         if ext in (".glb", ".gltf"):
             from .gltf import load_gltf
 

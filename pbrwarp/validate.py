@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 
-from .errors import InputError, InputTypeError
+from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
 
 
 def finite_vector(value, length: int, what: str) -> tuple[float, ...]:
@@ -68,3 +69,18 @@ def positive_int(value, what: str) -> int:
     if value <= 0:
         raise InputError(f"{what} must be > 0, got {value}")
     return int(value)
+
+
+def readable_file(path, what: str, extensions: tuple, kinds: str) -> tuple[str, str]:
+    """(path, lower-case extension) of an existing file whose extension is one of ``extensions``;
+    ``what`` names the file in messages ("scene file") and ``kinds`` describes what it should be."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise AssetNotFoundError(f"{what} not found: {path}")
+    if os.path.isdir(path):
+        raise AssetFormatError(f"cannot load {path}: it is a folder, not a {what}")
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in extensions:
+        raise AssetFormatError(f"cannot load {path}: unsupported extension {ext!r} for a {what} "
+                               f"(supported: {', '.join(extensions)}, {kinds})")
+    return path, ext

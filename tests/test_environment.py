@@ -46,7 +46,7 @@ def test_load_shared_hdr_and_exr_round_trip(tmp_path):
 
 
 def test_missing_file_folder_and_unsupported_extension():
-    with pytest.raises(AssetNotFoundError, match="environment file not found"):
+    with pytest.raises(AssetNotFoundError, match="environment image not found"):
         Environment.load("/nonexistent/sky.hdr")
     with pytest.raises(AssetFormatError, match="folder"):
         Environment.load(HDR)
