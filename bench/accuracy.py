@@ -277,6 +277,13 @@ def contact_sheet(sheet, scene_names, path):
     out.save(path)
 
 
+def replot():
+    """Redraw accuracy.png from accuracy.json (python -c "import accuracy; accuracy.replot()" in bench/)."""
+    import json
+
+    plot(json.loads((RESULTS / "accuracy.json").read_text())["rows"], RESULTS / "accuracy.png")
+
+
 def plot(rows, path):
     """Error vs cost, log axes, Pareto fronts dashed: BRDF rungs against ns per evaluation (their
     frame times differ by less than the timing noise), sampling and shadows against ms per frame."""
@@ -292,11 +299,13 @@ def plot(rows, path):
                "fresnel": "tab:orange", "energy": "tab:olive", "coupling": "tab:cyan", "model": "tab:pink",
                "sampling": "tab:red", "shadows": "tab:brown", "ibl": "tab:gray"}
     floor = 1e-4  # the reference itself (error 0) sits on the floor of the log axis
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5), dpi=110)
+    fig, axes = plt.subplots(1, 3, figsize=(17, 5), dpi=110)
     panels = ((axes[0], [r for r in rows if r["ns_per_eval"] is not None], "ns_per_eval",
                "BRDF cost (ns per evaluation, one thread)", "BRDF rungs and presets (4 spp)"),
-              (axes[1], [r for r in rows if r["ns_per_eval"] is None], "ms",
-               "time for the four report frames (ms, 2 cores)", "sample counts and shadows"))
+              (axes[1], [r for r in rows if r["ns_per_eval"] is None and r["family"] != "ibl"], "ms",
+               "time for the four report frames (ms, 2 cores)", "sample counts and shadows"),
+              (axes[2], [r for r in rows if r["family"] == "ibl"], "ms",
+               "time for the HDR-lit frame (ms, 2 cores)", "environment light (vs 1024 shadowed directions)"))
     for ax, subset, key, xlabel, title in panels:
         points = [(max(r[key], 0.1), max(r["rel_rmse"], floor), r) for r in subset]
         for x, err, r in points:
