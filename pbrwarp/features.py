@@ -88,6 +88,11 @@ def _count(n: int, noun: str) -> str:
 
 
 VISIBILITY_MODES = ("auto", "raycast", "raster")
+# visibility="auto" ray-casts rather than hold a visibility buffer (8 bytes a sample, plus the
+# sample positions' 8) larger than this: 1920 x 1080 at 16 spp needs 506 MiB, 3840 x 2160 at
+# 16 spp would need 2 GiB.
+BYTES_PER_SAMPLE = 16
+MAX_AUTO_VISIBILITY_BUFFER_BYTES = 2**30
 def estimated_visibility_seconds(triangles: int, samples: int) -> tuple[float, float]:
     """(raster, ray cast) seconds of primary visibility on every core, by the cost models
     bench/visibility.py fitted (pbrwarp/raster.py keeps the constants)."""
@@ -105,6 +110,9 @@ def _visibility(mode: str, triangles: int, samples: int) -> tuple[str, str]:
     if mode != "auto":
         path = mode
         return path, f"primary visibility {'rasterized' if path == 'raster' else 'ray cast'} (visibility={mode!r}; {estimate})"
+    if samples * BYTES_PER_SAMPLE > MAX_AUTO_VISIBILITY_BUFFER_BYTES:
+        return "raycast", (f"primary visibility ray cast: a visibility buffer of {samples:,} samples would take "
+                           f"{samples * BYTES_PER_SAMPLE / 2**20:,.0f} MiB ({estimate})")
     path = "raster" if raster_s < raycast_s else "raycast"
     return path, f"primary visibility {'rasterized' if path == 'raster' else 'ray cast'}, the cheaper ({estimate})"
 

@@ -79,3 +79,5 @@ def test_visibility_is_a_compile_time_choice_and_explained():
     assert "primary visibility" in pw.explain(scene)
     with pytest.raises(pw.InputError, match="visibility"):
         pw.render(scene, width=8, height=8, visibility="zbuffer")
+    # auto does not hold a visibility buffer beyond 1 GiB (16 bytes a sample)
+    assert "would take 2,025 MiB" in pw.explain(scene, width=3840, height=2160, spp=16)
