@@ -206,7 +206,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--threads", type=_positive_int("thread count"), default=None, metavar="N",
                        help="worker threads (default: every core)")
         p.add_argument("--background", type=parse_colour, default=None, metavar="R,G,B",
-                       help="linear radiance where no surface is hit (default 0,0,0)")
+                       help="linear radiance where no surface is hit (default: the --env environment, else 0,0,0)")
         p.add_argument("--transparent", action="store_true",
                        help="write coverage as alpha (PNG, WebP, TIFF) instead of the background")
         p.add_argument("--quality", choices=("fast", "balanced", "accurate", "reference"), default=None,
