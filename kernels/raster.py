@@ -14,13 +14,15 @@ sample in a conservative screen rectangle is tested with the ray-triangle inters
 to recompute the hit of the triangle this buffer names.
 
 pbrwarp/raster.py runs the stages: sample positions, projected vertices, per-triangle screen
-rectangles binned into tiles, then rasterization, one launch per group of tiles.
+rectangles binned into tiles, then rasterization, tiles taken from a queue shared by one launch
+per thread.
 """
 
 import warp as wp
 
 from .camera import CameraData, camera_ray_direction
 from .sampling import multi_jittered_sample
+from .work_queue import take_next_item
 
 wp.set_module_options({"enable_backward": False})
 
@@ -337,20 +339,40 @@ def triangle_rect(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp
     q1 = projected[i1]
     q2 = projected[i2]
     if is_projected(q0) and is_projected(q1) and is_projected(q2):
-        return projected_rect(q0, q1, q2, spp, proj.width, proj.height)
+        r = projected_rect(q0, q1, q2, spp, proj.width, proj.height)
+        # a one-pixel rectangle holds one sample: test it now, so that the many small triangles of
+        # a dense mesh that fall between pixel centres are never binned nor read again
+        if spp == 1 and r[0] == r[2] and r[1] == r[3] and not covers_pixel_centre(q0, q1, q2, r[0], r[1]):
+            return empty_rect()
+        return r
     if q0[2] == BEHIND_CAMERA and q1[2] == BEHIND_CAMERA and q2[2] == BEHIND_CAMERA:
         return empty_rect()
     return clipped_rect(proj, positions[i0], positions[i1], positions[i2])
 
 
 # ---------------------------------------------------------------------- binning
+@wp.func
+def has_valid_indices(indices: wp.array(dtype=wp.int32), face: int, vertex_count: int) -> bool:
+    i0 = indices[3 * face]
+    i1 = indices[3 * face + 1]
+    i2 = indices[3 * face + 2]
+    return wp.min(i0, wp.min(i1, i2)) >= 0 and wp.max(i0, wp.max(i1, i2)) < vertex_count
+
+
 @wp.kernel
-def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
+def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
                 projected: wp.array(dtype=wp.vec3d), proj: Projection, spp: int, first: int, chunk: int,
-                tiles_x: int, rects: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32)):
+                tiles_x: int, rects: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32),
+                bad_indices: wp.array(dtype=wp.int32)):
     """Screen rectangle of each triangle of a chunk, and per tile how many of them touch it.
-    Only this chunk's launch writes row ``chunk`` of tile_counts."""
+    Only this chunk's launch writes row ``chunk`` of tile_counts and bad_indices[chunk], set to 1
+    if a triangle of the chunk has an index out of range (checked here, on every thread, rather
+    than by a serial pass before; such triangles are not read)."""
     face = first + wp.tid()
+    if not has_valid_indices(indices, face, vertex_count):
+        bad_indices[chunk] = 1
+        rects[face] = empty_rect()
+        return
     r = triangle_rect(positions, indices, projected, proj, spp, face)
     rects[face] = r
     if r[0] > r[2]:
@@ -359,6 +381,23 @@ def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.i
         for tx in range(r[0] / TILE_SIZE, r[2] / TILE_SIZE + 1):
             tile = ty * tiles_x + tx
             tile_counts[chunk, tile] = tile_counts[chunk, tile] + 1
+
+
+@wp.kernel
+def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dtype=wp.int32),
+                bin_start: wp.array(dtype=wp.int32), total: wp.array(dtype=wp.int64)):
+    """Launched on one thread: bins are contiguous per tile, each chunk's part after the previous
+    chunks'. bin_start[tile] is where a tile's bin starts, cursors[chunk, tile] where a chunk's
+    part of it does, total[0] the length of all bins (exact in int64; offsets are meaningful only
+    if it is below 2^31)."""
+    end = wp.int64(0)
+    for tile in range(tile_counts.shape[1]):
+        bin_start[tile] = int(end)
+        for chunk in range(tile_counts.shape[0]):
+            cursors[chunk, tile] = int(end)
+            end = end + wp.int64(tile_counts[chunk, tile])
+    bin_start[tile_counts.shape[1]] = int(end)
+    total[0] = end
 
 
 @wp.kernel
@@ -392,6 +431,38 @@ def owns_boundary(a: wp.int64, b: wp.int64) -> bool:
 def keep_nearest(out: wp.array2d(dtype=wp.uint64), row: int, col: int, entry: wp.uint64):
     if entry < out[row, col]:
         out[row, col] = entry
+
+
+@wp.func
+def covers_edge_origin(xa: wp.int64, ya: wp.int64, xb: wp.int64, yb: wp.int64, flip: wp.int64) -> bool:
+    """Whether the origin is inside edge a -> b (coordinates relative to the sample), by
+    rasterize_triangle's rule: flip (+-1) orients the triangle counter-clockwise, and a sample on
+    the edge counts only if the edge owns its boundary."""
+    e = (xa * yb - xb * ya) * flip
+    return e > wp.int64(0) or (e == wp.int64(0) and owns_boundary((ya - yb) * flip, (xb - xa) * flip))
+
+
+@wp.func
+def covers_pixel_centre(q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, px: int, py: int) -> bool:
+    """Whether a projected triangle covers the centre of pixel (px, py), exactly as
+    rasterize_triangle decides it with spp = 1 (the same int64 edge functions, evaluated with the
+    sample moved to the origin)."""
+    sx = wp.int64(px) * PIXEL + HALF_PIXEL
+    sy = wp.int64(py) * PIXEL + HALF_PIXEL
+    x0 = wp.int64(q0[0]) - sx
+    y0 = wp.int64(q0[1]) - sy
+    x1 = wp.int64(q1[0]) - sx
+    y1 = wp.int64(q1[1]) - sy
+    x2 = wp.int64(q2[0]) - sx
+    y2 = wp.int64(q2[1]) - sy
+    area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+    if area == wp.int64(0):
+        return False
+    flip = wp.int64(1)
+    if area < wp.int64(0):
+        flip = wp.int64(-1)
+    return (covers_edge_origin(x1, y1, x2, y2, flip) and covers_edge_origin(x2, y2, x0, y0, flip)
+            and covers_edge_origin(x0, y0, x1, y1, flip))
 
 
 @wp.func
@@ -503,10 +574,13 @@ def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=
                     projected: wp.array(dtype=wp.vec3d), rects: wp.array(dtype=wp.vec4i),
                     bin_start: wp.array(dtype=wp.int32), bins: wp.array(dtype=wp.int32),
                     samples: wp.array2d(dtype=wp.vec2), spp: int, cam: CameraData, proj: Projection,
-                    tiles_x: int, group: int, group_count: int, out: wp.array2d(dtype=wp.uint64)):
-    """Tiles group, group + group_count, ...: clear each, then draw every triangle of its bin
-    into it. A tile belongs to exactly one launch, so its samples need no atomics."""
-    tile = group + wp.tid() * group_count
+                    tiles_x: int, queue: wp.array(dtype=wp.int32), out: wp.array2d(dtype=wp.uint64)):
+    """Tiles taken one at a time from ``queue``, shared by every launch: clear each, then draw
+    every triangle of its bin into it. A tile is taken by exactly one launch, so its samples need
+    no atomics; launch with one thread per tile, as any launch may take them all."""
+    tile = take_next_item(queue)
+    if tile >= bin_start.shape[0] - 1:
+        return
     tile_x0 = (tile % tiles_x) * TILE_SIZE
     tile_y0 = (tile / tiles_x) * TILE_SIZE
     tile_x1 = wp.min(tile_x0 + TILE_SIZE, proj.width) - 1

@@ -2,10 +2,11 @@
 
 :func:`visibility_buffer` gives, per sample, the nearest triangle and its depth. Stages: sample
 positions (camera independent, cached), projected vertices, screen rectangles binned into
-TILE_SIZE tiles, then one launch per group of tiles from a thread pool (Warp CPU launches run on
-one thread and release the GIL). Triangles are split into one chunk per thread for projection
-and binning; each tile is rasterized by one launch only, so no sample is written concurrently and
-the buffer does not depend on the thread count.
+TILE_SIZE tiles, then one launch per thread from a thread pool (Warp CPU launches run on one
+thread and release the GIL), each taking tiles from a shared queue. Triangles are split into one
+chunk per thread for projection and binning; each tile is rasterized by one launch only, so no
+sample is written concurrently, and a sample keeps the minimum of its entries whatever the order
+they come in, so the buffer does not depend on the thread count.
 """
 
 from __future__ import annotations
@@ -26,8 +27,6 @@ from pbrwarp.kernels.loading import load_for_cpu
 NO_TRIANGLE = 0xFFFFFFFFFFFFFFFF
 TILE_SIZE = int(rk.TILE_SIZE)
 MAX_IMAGE_SIZE = rk.MAX_IMAGE_SIZE
-# Launches per thread for the tile groups: enough for the pool to even out unequal tiles.
-LAUNCHES_PER_THREAD = 4
 # Fewest vertices or triangles worth a launch of their own: below this, a pool round trip costs
 # more than the work it would share.
 MIN_CHUNK = 16384
@@ -62,7 +61,8 @@ RASTER_SECONDS_PER_TRIANGLE = 61e-9
 RASTER_SECONDS_PER_SAMPLE = 5.3e-9
 RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 5.2e-9
 
-KERNELS = (rk.sample_positions, rk.project_vertices, rk.count_tiles, rk.fill_bins, rk.rasterize_tiles)
+KERNELS = (rk.sample_positions, rk.project_vertices, rk.count_tiles, rk.bin_offsets, rk.fill_bins,
+           rk.rasterize_tiles)
 
 
 def _run(fn, jobs, threads: int):
@@ -145,7 +145,8 @@ def _check_sampling(width, height, spp, grid_m, grid_n, seed):
 
 
 def _check_geometry(positions, indices) -> tuple[int, int]:
-    """(vertex count, triangle count); every index checked, since one out of range crashes Warp."""
+    """(vertex count, triangle count). Index values are checked by count_tiles, before any is used
+    to read (one out of range would crash Warp)."""
     if not isinstance(positions, wp.array) or positions.dtype != wp.vec3 or positions.ndim != 1:
         raise InputTypeError("positions must be a 1-D wp.array of wp.vec3")
     if not isinstance(indices, wp.array) or indices.dtype != wp.int32 or indices.ndim != 1:
@@ -154,13 +155,7 @@ def _check_geometry(positions, indices) -> tuple[int, int]:
         raise InputError("positions and indices must live on the CPU")
     if len(indices) % 3:
         raise InputError(f"indices must hold 3 per triangle, got {len(indices)}")
-    vertices, triangles = len(positions), len(indices) // 3
-    if triangles:
-        idx = indices.numpy()
-        if idx.min() < 0 or idx.max() >= vertices:
-            raise InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], "
-                             f"{vertices} vertices")
-    return vertices, triangles
+    return len(positions), len(indices) // 3
 
 
 def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, spp: int = 1, grid_m: int = 1,
@@ -203,18 +198,23 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     chunks = _chunks(triangles, threads)
     rects = _scratch_array("rects", triangles, wp.vec4i)
     tile_counts = wp.zeros((max(len(chunks), 1), tiles), dtype=wp.int32, device="cpu")
+    bad_indices = wp.zeros(max(len(chunks), 1), dtype=wp.int32, device="cpu")
     _run(lambda job: wp.launch(rk.count_tiles, dim=job[2], device="cpu",
-                               inputs=[positions, indices, projected, proj, spp, job[1], job[0], tiles_x, rects,
-                                       tile_counts]),
+                               inputs=[positions, indices, vertices, projected, proj, spp, job[1], job[0], tiles_x,
+                                       rects, tile_counts, bad_indices]),
          chunks, threads)
-    # bins are contiguous per tile, each chunk's triangles after the previous chunks'
-    counts = tile_counts.numpy().astype(np.int64)
-    ends = np.cumsum(counts.T.reshape(-1)).reshape(tiles, -1)
-    if ends[-1, -1] >= 2**31:
-        raise InputError(f"too many triangle-tile pairs ({ends[-1, -1]}) for int32 bins")
-    cursors = wp.array(np.ascontiguousarray((ends - counts.T).T), dtype=wp.int32, device="cpu")
-    bin_start = wp.array(np.concatenate([[0], ends[:, -1]]), dtype=wp.int32, device="cpu")
-    bins = _scratch_array("bins", int(ends[-1, -1]), wp.int32)
+    if bad_indices.numpy().any():
+        idx = indices.numpy()
+        raise InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], "
+                         f"{vertices} vertices")
+    cursors = wp.empty(tile_counts.shape, dtype=wp.int32, device="cpu")
+    bin_start = wp.empty(tiles + 1, dtype=wp.int32, device="cpu")
+    bin_total = wp.empty(1, dtype=wp.int64, device="cpu")
+    wp.launch(rk.bin_offsets, dim=1, device="cpu", inputs=[tile_counts, cursors, bin_start, bin_total])
+    total = int(bin_total.numpy()[0])
+    if total >= 2**31:
+        raise InputError(f"too many triangle-tile pairs ({total}) for int32 bins")
+    bins = _scratch_array("bins", total, wp.int32)
     _run(lambda job: wp.launch(rk.fill_bins, dim=job[2], device="cpu",
                                inputs=[rects, job[1], job[0], tiles_x, cursors, bins]),
          chunks, threads)
@@ -222,11 +222,13 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
 
     if out is None:
         out = wp.empty((height, width * spp), dtype=wp.uint64, device="cpu")
-    groups = min(tiles, LAUNCHES_PER_THREAD * threads if threads > 1 else 1)
-    _run(lambda group: wp.launch(rk.rasterize_tiles, dim=len(range(group, tiles, groups)), device="cpu",
-                                 inputs=[positions, indices, projected, rects, bin_start, bins, samples, spp, cam,
-                                         proj, tiles_x, group, groups, out]),
-         list(range(groups)), threads)
+    # one launch per thread, taking tiles from a shared queue: a thread that drew light tiles
+    # takes more instead of waiting for the other
+    queue = wp.zeros(1, dtype=wp.int32, device="cpu")
+    _run(lambda _: wp.launch(rk.rasterize_tiles, dim=tiles, device="cpu",
+                             inputs=[positions, indices, projected, rects, bin_start, bins, samples, spp, cam, proj,
+                                     tiles_x, queue, out]),
+         list(range(min(threads, tiles))), threads)
     if timings is not None:
         timings["samples"] = t_samples - clock
         timings["binning"] = t_binning - t_samples
