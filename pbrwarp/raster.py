@@ -19,7 +19,7 @@ import numpy as np
 import warp as wp
 
 from .errors import InputError, InputTypeError
-from .parallel import run, thread_count
+from .parallel import run, run_stages, thread_count
 from pbrwarp.kernels import raster as rk
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
@@ -45,11 +45,12 @@ class _Scratch(threading.local):
 _scratch = _Scratch()
 
 
-def _scratch_array(kind: str, length: int, dtype) -> wp.array:
-    """A 1-D array of ``length`` (at least 1) elements of ``dtype``, reused across calls."""
-    array = _scratch.arrays.get(kind)
+def _scratch_array(arrays: dict, kind: str, length: int, dtype) -> wp.array:
+    """A 1-D array of ``length`` (at least 1) elements of ``dtype``, reused across calls: arrays
+    is one thread's _scratch.arrays."""
+    array = arrays.get(kind)
     if array is None or len(array) < length:
-        array = _scratch.arrays[kind] = wp.empty(max(length, 1), dtype=dtype, device="cpu")
+        array = arrays[kind] = wp.empty(max(length, 1), dtype=dtype, device="cpu")
     return array[:max(length, 1)]
 
 
@@ -191,48 +192,64 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
 
     tiles_x = math.ceil(width / TILE_SIZE)
     tiles = tiles_x * math.ceil(height / TILE_SIZE)
-    projected = _scratch_array("projected", vertices, wp.vec3d)
-    _run(lambda job: wp.launch(rk.project_vertices, dim=job[2], device="cpu",
-                               inputs=[positions, proj, job[1], projected]),
-         _chunks(vertices, threads), threads)
+    vertex_chunks = _chunks(vertices, threads)
     chunks = _chunks(triangles, threads)
-    rects = _scratch_array("rects", triangles, wp.vec4i)
+    scratch = _scratch.arrays  # the calling thread's, also when a pool thread allocates the bins
+    projected = _scratch_array(scratch, "projected", vertices, wp.vec3d)
+    rects = _scratch_array(scratch, "rects", triangles, wp.vec4i)
     tile_counts = wp.zeros((max(len(chunks), 1), tiles), dtype=wp.int32, device="cpu")
     bad_indices = wp.zeros(max(len(chunks), 1), dtype=wp.int32, device="cpu")
-    _run(lambda job: wp.launch(rk.count_tiles, dim=job[2], device="cpu",
-                               inputs=[positions, indices, vertices, projected, proj, spp, job[1], job[0], tiles_x,
-                                       rects, tile_counts, bad_indices]),
-         chunks, threads)
-    if bad_indices.numpy().any():
-        idx = indices.numpy()
-        raise InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], "
-                         f"{vertices} vertices")
     cursors = wp.empty(tile_counts.shape, dtype=wp.int32, device="cpu")
     bin_start = wp.empty(tiles + 1, dtype=wp.int32, device="cpu")
     bin_total = wp.empty(1, dtype=wp.int64, device="cpu")
-    wp.launch(rk.bin_offsets, dim=1, device="cpu", inputs=[tile_counts, cursors, bin_start, bin_total])
-    total = int(bin_total.numpy()[0])
-    if total >= 2**31:
-        raise InputError(f"too many triangle-tile pairs ({total}) for int32 bins")
-    bins = _scratch_array("bins", total, wp.int32)
-    _run(lambda job: wp.launch(rk.fill_bins, dim=job[2], device="cpu",
-                               inputs=[rects, job[1], job[0], tiles_x, cursors, bins]),
-         chunks, threads)
-    t_binning = time.perf_counter()
-
+    queue = wp.zeros(1, dtype=wp.int32, device="cpu")
     if out is None:
         out = wp.empty((height, width * spp), dtype=wp.uint64, device="cpu")
-    # one launch per thread, taking tiles from a shared queue: a thread that drew light tiles
-    # takes more instead of waiting for the other
-    queue = wp.zeros(1, dtype=wp.int32, device="cpu")
-    _run(lambda _: wp.launch(rk.rasterize_tiles, dim=tiles, device="cpu",
-                             inputs=[positions, indices, projected, rects, bin_start, bins, samples, spp, cam, proj,
-                                     tiles_x, queue, out]),
-         list(range(min(threads, tiles))), threads)
+    binned = {}
+
+    def project(k):
+        if k < len(vertex_chunks):
+            _, first, count = vertex_chunks[k]
+            wp.launch(rk.project_vertices, dim=count, device="cpu", inputs=[positions, proj, first, projected])
+
+    def count_tiles(k):
+        if k < len(chunks):
+            _, first, count = chunks[k]
+            wp.launch(rk.count_tiles, dim=count, device="cpu",
+                      inputs=[positions, indices, vertices, projected, proj, spp, first, k, tiles_x, rects,
+                              tile_counts, bad_indices])
+
+    def allocate_bins():
+        if bad_indices.numpy().any():
+            idx = indices.numpy()
+            raise InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], "
+                             f"{vertices} vertices")
+        wp.launch(rk.bin_offsets, dim=1, device="cpu", inputs=[tile_counts, cursors, bin_start, bin_total])
+        total = int(bin_total.numpy()[0])
+        if total >= 2**31:
+            raise InputError(f"too many triangle-tile pairs ({total}) for int32 bins")
+        binned["bins"] = _scratch_array(scratch, "bins", total, wp.int32)
+
+    def fill_bins(k):
+        if k < len(chunks):
+            _, first, count = chunks[k]
+            wp.launch(rk.fill_bins, dim=count, device="cpu",
+                      inputs=[rects, first, k, tiles_x, cursors, binned["bins"]])
+
+    def binning_done():
+        binned["clock"] = time.perf_counter()
+
+    def rasterize(k):
+        # every thread takes tiles from the shared queue until none are left
+        wp.launch(rk.rasterize_tiles, dim=tiles, device="cpu",
+                  inputs=[positions, indices, projected, rects, bin_start, binned["bins"], samples, spp, cam, proj,
+                          tiles_x, queue, out])
+
+    run_stages([(project, None), (count_tiles, allocate_bins), (fill_bins, binning_done), (rasterize, None)], threads)
     if timings is not None:
         timings["samples"] = t_samples - clock
-        timings["binning"] = t_binning - t_samples
-        timings["raster"] = time.perf_counter() - t_binning
+        timings["binning"] = binned["clock"] - t_samples
+        timings["raster"] = time.perf_counter() - binned["clock"]
     return out
 
 
