@@ -44,9 +44,10 @@ MAX_IMAGE_SIZE = 65536
 # Screen tiles are TILE_SIZE x TILE_SIZE pixels; each is rasterized by one thread, alone.
 TILE_SIZE = wp.constant(32)
 
-# The third component of a projected vertex: 1/z when it is projected, else one of these.
-BEHIND_CAMERA = wp.constant(wp.float64(-1.0))
-OUTSIDE_GUARD_BAND = wp.constant(wp.float64(0.0))
+# The x of a vertex's screen position when it is not projected: snapped coordinates lie within
+# +-2^29, so int32 holds them and these codes below them.
+BEHIND_CAMERA = wp.constant(-2147483648)
+OUTSIDE_GUARD_BAND = wp.constant(-2147483647)
 # Relative size below which a direction component may have the wrong sign after rounding.
 DIRECTION_TOLERANCE = wp.constant(wp.float64(1.0e-12))
 
@@ -195,24 +196,26 @@ def screen_y(proj: Projection, c: wp.vec3d) -> wp.float64:
 
 @wp.kernel
 def project_vertices(positions: wp.array(dtype=wp.vec3), proj: Projection, first: int,
-                     out: wp.array(dtype=wp.vec3d)):
-    """(snapped x, snapped y, 1/z) of each vertex, or a BEHIND_CAMERA / OUTSIDE_GUARD_BAND code."""
+                     screen: wp.array(dtype=wp.vec2i), inv_depth: wp.array(dtype=wp.float64)):
+    """Snapped screen position (x, y) and 1/z of each vertex, or x = BEHIND_CAMERA /
+    OUTSIDE_GUARD_BAND. Positions and depths are apart so that binning reads 8 bytes a vertex."""
     i = first + wp.tid()
     c = camera_coordinates(proj, positions[i])
     if c[2] <= wp.float64(0.0):
-        out[i] = wp.vec3d(wp.float64(0.0), wp.float64(0.0), BEHIND_CAMERA)
+        screen[i] = wp.vec2i(BEHIND_CAMERA, 0)
         return
     x = screen_x(proj, c)
     y = screen_y(proj, c)
     if wp.abs(x) <= GUARD_BAND and wp.abs(y) <= GUARD_BAND:
-        out[i] = wp.vec3d(wp.round(x * SUBPIXEL_SCALE), wp.round(y * SUBPIXEL_SCALE), wp.float64(1.0) / c[2])
+        screen[i] = wp.vec2i(int(wp.round(x * SUBPIXEL_SCALE)), int(wp.round(y * SUBPIXEL_SCALE)))
+        inv_depth[i] = wp.float64(1.0) / c[2]
     else:
-        out[i] = wp.vec3d(wp.float64(0.0), wp.float64(0.0), OUTSIDE_GUARD_BAND)
+        screen[i] = wp.vec2i(OUTSIDE_GUARD_BAND, 0)
 
 
 @wp.func
-def is_projected(q: wp.vec3d) -> bool:
-    return q[2] > wp.float64(0.0)
+def is_projected(q: wp.vec2i) -> bool:
+    return q[0] > OUTSIDE_GUARD_BAND
 
 
 # ---------------------------------------------------------------------- screen rectangles
@@ -240,7 +243,7 @@ def sampled_pixel_range(lo: wp.int64, hi: wp.int64, spp: int) -> wp.vec2i:
 
 
 @wp.func
-def projected_rect(q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, spp: int, width: int, height: int) -> wp.vec4i:
+def projected_rect(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, spp: int, width: int, height: int) -> wp.vec4i:
     """Pixels with samples a projected triangle may cover; empty for a zero-area (degenerate) one."""
     x0 = wp.int64(q0[0])
     y0 = wp.int64(q0[1])
@@ -331,13 +334,13 @@ def clipped_rect(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -> wp.
 
 @wp.func
 def triangle_rect(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
-                  projected: wp.array(dtype=wp.vec3d), proj: Projection, spp: int, face: int) -> wp.vec4i:
+                  screen: wp.array(dtype=wp.vec2i), proj: Projection, spp: int, face: int) -> wp.vec4i:
     i0 = indices[3 * face]
     i1 = indices[3 * face + 1]
     i2 = indices[3 * face + 2]
-    q0 = projected[i0]
-    q1 = projected[i1]
-    q2 = projected[i2]
+    q0 = screen[i0]
+    q1 = screen[i1]
+    q2 = screen[i2]
     if is_projected(q0) and is_projected(q1) and is_projected(q2):
         r = projected_rect(q0, q1, q2, spp, proj.width, proj.height)
         # a one-pixel rectangle holds one sample: test it now, so that the many small triangles of
@@ -345,7 +348,7 @@ def triangle_rect(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp
         if spp == 1 and r[0] == r[2] and r[1] == r[3] and not covers_pixel_centre(q0, q1, q2, r[0], r[1]):
             return empty_rect()
         return r
-    if q0[2] == BEHIND_CAMERA and q1[2] == BEHIND_CAMERA and q2[2] == BEHIND_CAMERA:
+    if q0[0] == BEHIND_CAMERA and q1[0] == BEHIND_CAMERA and q2[0] == BEHIND_CAMERA:
         return empty_rect()
     return clipped_rect(proj, positions[i0], positions[i1], positions[i2])
 
@@ -361,7 +364,7 @@ def has_valid_indices(indices: wp.array(dtype=wp.int32), face: int, vertex_count
 
 @wp.kernel
 def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
-                projected: wp.array(dtype=wp.vec3d), proj: Projection, spp: int, first: int, chunk: int,
+                screen: wp.array(dtype=wp.vec2i), proj: Projection, spp: int, first: int, chunk: int,
                 tiles_x: int, rects: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32),
                 bad_indices: wp.array(dtype=wp.int32)):
     """Screen rectangle of each triangle of a chunk, and per tile how many of them touch it.
@@ -373,7 +376,7 @@ def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.i
         bad_indices[chunk] = 1
         rects[face] = empty_rect()
         return
-    r = triangle_rect(positions, indices, projected, proj, spp, face)
+    r = triangle_rect(positions, indices, screen, proj, spp, face)
     rects[face] = r
     if r[0] > r[2]:
         return
@@ -443,7 +446,7 @@ def covers_edge_origin(xa: wp.int64, ya: wp.int64, xb: wp.int64, yb: wp.int64, f
 
 
 @wp.func
-def covers_pixel_centre(q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, px: int, py: int) -> bool:
+def covers_pixel_centre(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, px: int, py: int) -> bool:
     """Whether a projected triangle covers the centre of pixel (px, py), exactly as
     rasterize_triangle decides it with spp = 1 (the same int64 edge functions, evaluated with the
     sample moved to the origin)."""
@@ -466,7 +469,8 @@ def covers_pixel_centre(q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, px: int, py: i
 
 
 @wp.func
-def rasterize_triangle(face: int, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, rect: wp.vec4i,
+def rasterize_triangle(face: int, q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: wp.float64, w1: wp.float64,
+                       w2: wp.float64, rect: wp.vec4i,
                        samples: wp.array2d(dtype=wp.vec2), spp: int, out: wp.array2d(dtype=wp.uint64)):
     """Edge-function coverage of the samples of ``rect`` by a projected triangle, exact in int64;
     depth from 1/z interpolated linearly in screen space (perspective-correct)."""
@@ -516,9 +520,9 @@ def rasterize_triangle(face: int, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, rect
     c2 = c2 + bias2
     # 1/z = sum_i e_i 1/z_i / area, with the biases taken back out
     inv_area = wp.float64(1.0) / wp.float64(area)
-    k0 = q0[2] * inv_area
-    k1 = q1[2] * inv_area
-    k2 = q2[2] * inv_area
+    k0 = w0 * inv_area
+    k1 = w1 * inv_area
+    k2 = w2 * inv_area
     k_bias = -(wp.float64(bias0) * k0 + wp.float64(bias1) * k1 + wp.float64(bias2) * k2)
     if spp == 1:
         # pixel centres: step the edge functions along the row instead of loading samples
@@ -571,7 +575,8 @@ def trace_triangle(face: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, rect: wp.ve
 
 @wp.kernel
 def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
-                    projected: wp.array(dtype=wp.vec3d), rects: wp.array(dtype=wp.vec4i),
+                    screen: wp.array(dtype=wp.vec2i), inv_depth: wp.array(dtype=wp.float64),
+                    rects: wp.array(dtype=wp.vec4i),
                     bin_start: wp.array(dtype=wp.int32), bins: wp.array(dtype=wp.int32),
                     samples: wp.array2d(dtype=wp.vec2), spp: int, cam: CameraData, proj: Projection,
                     tiles_x: int, queue: wp.array(dtype=wp.int32), out: wp.array2d(dtype=wp.uint64)):
@@ -595,10 +600,10 @@ def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=
         i0 = indices[3 * face]
         i1 = indices[3 * face + 1]
         i2 = indices[3 * face + 2]
-        q0 = projected[i0]
-        q1 = projected[i1]
-        q2 = projected[i2]
+        q0 = screen[i0]
+        q1 = screen[i1]
+        q2 = screen[i2]
         if is_projected(q0) and is_projected(q1) and is_projected(q2):
-            rasterize_triangle(face, q0, q1, q2, rect, samples, spp, out)
+            rasterize_triangle(face, q0, q1, q2, inv_depth[i0], inv_depth[i1], inv_depth[i2], rect, samples, spp, out)
         else:
             trace_triangle(face, positions[i0], positions[i1], positions[i2], rect, samples, spp, cam, proj, out)

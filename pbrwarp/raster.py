@@ -195,7 +195,8 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     vertex_chunks = _chunks(vertices, threads)
     chunks = _chunks(triangles, threads)
     scratch = _scratch.arrays  # the calling thread's, also when a pool thread allocates the bins
-    projected = _scratch_array(scratch, "projected", vertices, wp.vec3d)
+    screen = _scratch_array(scratch, "screen", vertices, wp.vec2i)
+    inv_depth = _scratch_array(scratch, "inv_depth", vertices, wp.float64)
     rects = _scratch_array(scratch, "rects", triangles, wp.vec4i)
     tile_counts = wp.zeros((max(len(chunks), 1), tiles), dtype=wp.int32, device="cpu")
     bad_indices = wp.zeros(max(len(chunks), 1), dtype=wp.int32, device="cpu")
@@ -210,13 +211,14 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     def project(k):
         if k < len(vertex_chunks):
             _, first, count = vertex_chunks[k]
-            wp.launch(rk.project_vertices, dim=count, device="cpu", inputs=[positions, proj, first, projected])
+            wp.launch(rk.project_vertices, dim=count, device="cpu",
+                      inputs=[positions, proj, first, screen, inv_depth])
 
     def count_tiles(k):
         if k < len(chunks):
             _, first, count = chunks[k]
             wp.launch(rk.count_tiles, dim=count, device="cpu",
-                      inputs=[positions, indices, vertices, projected, proj, spp, first, k, tiles_x, rects,
+                      inputs=[positions, indices, vertices, screen, proj, spp, first, k, tiles_x, rects,
                               tile_counts, bad_indices])
 
     def allocate_bins():
@@ -242,8 +244,8 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     def rasterize(k):
         # every thread takes tiles from the shared queue until none are left
         wp.launch(rk.rasterize_tiles, dim=tiles, device="cpu",
-                  inputs=[positions, indices, projected, rects, bin_start, binned["bins"], samples, spp, cam, proj,
-                          tiles_x, queue, out])
+                  inputs=[positions, indices, screen, inv_depth, rects, bin_start, binned["bins"], samples, spp, cam,
+                          proj, tiles_x, queue, out])
 
     run_stages([(project, None), (count_tiles, allocate_bins), (fill_bins, binning_done), (rasterize, None)], threads)
     if timings is not None:
