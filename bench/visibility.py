@@ -10,9 +10,10 @@ Samples per second (one per pixel, every pixel counted, hit or not) of
 - Open3D's RaycastingScene.cast_rays (Embree, all cores) on the same rays, precomputed,
   when open3d is installed.
 Meshes: an icosphere and the Stanford bunny at 512², 1024², 2048²; icospheres of 20k to 1.3M
-triangles at 1024². Also the raster's time split (binning vs rasterization) and least-squares
-cost models, time = a triangles + b samples for the raster and c samples log2(triangles) for
-the ray cast, whose constants pbrwarp/raster.py keeps. Medians of --repeats runs after a warm-up.
+triangles, Suzanne subdivided to 15k and the happy Buddha to 1.6M triangles at 1024². Also the
+raster's time split (binning vs rasterization) and least-squares cost models, time = a triangles
++ b samples for the raster and c samples log2(triangles) for the ray cast, whose constants
+pbrwarp/raster.py keeps. Medians of --repeats runs after a warm-up.
 Writes bench/results/visibility.{md,json}.
 """
 
@@ -36,7 +37,7 @@ from pbrwarp.kernels import stages  # noqa: E402
 from pbrwarp.kernels.camera import CameraData, camera_ray_direction  # noqa: E402
 from pbrwarp.kernels.loading import load_for_cpu  # noqa: E402
 from pbrwarp.kernels.robust import RAY_FAR  # noqa: E402
-from pbrwarp.meshes import bunny, icosphere  # noqa: E402
+from pbrwarp.meshes import asset, bunny, icosphere  # noqa: E402
 from pbrwarp.raster import decode, visibility_buffer  # noqa: E402
 from pbrwarp.parallel import thread_pool  # noqa: E402
 from pbrwarp.render import LAUNCHES_PER_THREAD, _camera_data, bands  # noqa: E402
@@ -180,6 +181,18 @@ def markdown(rows, model, threads_all):
     return "\n".join(lines) + "\n"
 
 
+def subdivided(name, times):
+    """A shared-asset mesh with each triangle split in four ``times`` times: Suzanne (968
+    triangles) twice gives 15,488, the happy Buddha (100,000) twice 1,600,000, the ends of the
+    issue's 10k to 2M range."""
+    import trimesh
+
+    mesh = trimesh.load(asset(f"meshes/{name}.obj"), force="mesh", process=True)
+    for _ in range(times):
+        mesh = mesh.subdivide()
+    return mesh
+
+
 def cases(quick):
     if quick:
         return [("icosphere", icosphere(4), 128)]
@@ -191,6 +204,8 @@ def cases(quick):
         out.append(("stanford bunny", rabbit, size))
     for subdivisions in (5, 7, 8):
         out.append(("icosphere", icosphere(subdivisions), 1024))
+    out.append(("suzanne", subdivided("suzanne", 2), 1024))
+    out.append(("happy buddha", subdivided("happy-buddha", 2), 1024))
     return out
 
 
