@@ -18,6 +18,7 @@ import time
 import numpy as np
 import warp as wp
 
+from . import huge_pages
 from .errors import InputError, InputTypeError
 from .parallel import run, run_stages, thread_count
 from pbrwarp.kernels import raster as rk
@@ -206,7 +207,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     bin_total = wp.empty(1, dtype=wp.int64, device="cpu")
     queue = wp.zeros(1, dtype=wp.int32, device="cpu")
     if out is None:
-        out = wp.empty((height, width * spp), dtype=wp.uint64, device="cpu")
+        out = huge_pages.empty((height, width * spp), wp.uint64)
     binned = {}
 
     def project(k):
