@@ -43,6 +43,9 @@ GUARD_BAND = wp.constant(wp.float64(131072.0))
 MAX_IMAGE_SIZE = 65536
 # Screen tiles are TILE_SIZE x TILE_SIZE pixels; each is rasterized by one thread, alone.
 TILE_SIZE = wp.constant(32)
+# Vertices or triangles per Warp thread in projection and binning: a CPU launch calls the kernel
+# once per thread and copies its arguments each time, which cost more than one small triangle.
+ITEMS_PER_THREAD = wp.constant(64)
 
 # The x of a vertex's screen position when it is not projected: snapped coordinates lie within
 # +-2^29, so int32 holds them and these codes below them.
@@ -194,12 +197,9 @@ def screen_y(proj: Projection, c: wp.vec3d) -> wp.float64:
     return (wp.float64(1.0) - c[1] / c[2]) * proj.half_height
 
 
-@wp.kernel
-def project_vertices(positions: wp.array(dtype=wp.vec3), proj: Projection, first: int,
-                     screen: wp.array(dtype=wp.vec2i), inv_depth: wp.array(dtype=wp.float64)):
-    """Snapped screen position (x, y) and 1/z of each vertex, or x = BEHIND_CAMERA /
-    OUTSIDE_GUARD_BAND. Positions and depths are apart so that binning reads 8 bytes a vertex."""
-    i = first + wp.tid()
+@wp.func
+def project_vertex(positions: wp.array(dtype=wp.vec3), proj: Projection, i: int, screen: wp.array(dtype=wp.vec2i),
+                   inv_depth: wp.array(dtype=wp.float64)):
     c = camera_coordinates(proj, positions[i])
     if c[2] <= wp.float64(0.0):
         screen[i] = wp.vec2i(BEHIND_CAMERA, 0)
@@ -211,6 +211,17 @@ def project_vertices(positions: wp.array(dtype=wp.vec3), proj: Projection, first
         inv_depth[i] = wp.float64(1.0) / c[2]
     else:
         screen[i] = wp.vec2i(OUTSIDE_GUARD_BAND, 0)
+
+
+@wp.kernel
+def project_vertices(positions: wp.array(dtype=wp.vec3), proj: Projection, first: int, end: int,
+                     screen: wp.array(dtype=wp.vec2i), inv_depth: wp.array(dtype=wp.float64)):
+    """Snapped screen position (x, y) and 1/z of vertices [first, end), ITEMS_PER_THREAD per
+    thread, or x = BEHIND_CAMERA / OUTSIDE_GUARD_BAND. Positions and depths are apart so that
+    binning reads 8 bytes a vertex."""
+    start = first + wp.tid() * ITEMS_PER_THREAD
+    for i in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
+        project_vertex(positions, proj, i, screen, inv_depth)
 
 
 @wp.func
@@ -362,16 +373,11 @@ def has_valid_indices(indices: wp.array(dtype=wp.int32), face: int, vertex_count
     return wp.min(i0, wp.min(i1, i2)) >= 0 and wp.max(i0, wp.max(i1, i2)) < vertex_count
 
 
-@wp.kernel
-def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
-                screen: wp.array(dtype=wp.vec2i), proj: Projection, spp: int, first: int, chunk: int,
-                tiles_x: int, rects: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32),
-                bad_indices: wp.array(dtype=wp.int32)):
-    """Screen rectangle of each triangle of a chunk, and per tile how many of them touch it.
-    Only this chunk's launch writes row ``chunk`` of tile_counts and bad_indices[chunk], set to 1
-    if a triangle of the chunk has an index out of range (checked here, on every thread, rather
-    than by a serial pass before; such triangles are not read)."""
-    face = first + wp.tid()
+@wp.func
+def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
+                   screen: wp.array(dtype=wp.vec2i), proj: Projection, spp: int, face: int, chunk: int,
+                   tiles_x: int, rects: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32),
+                   bad_indices: wp.array(dtype=wp.int32)):
     if not has_valid_indices(indices, face, vertex_count):
         bad_indices[chunk] = 1
         rects[face] = empty_rect()
@@ -384,6 +390,22 @@ def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.i
         for tx in range(r[0] / TILE_SIZE, r[2] / TILE_SIZE + 1):
             tile = ty * tiles_x + tx
             tile_counts[chunk, tile] = tile_counts[chunk, tile] + 1
+
+
+@wp.kernel
+def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
+                screen: wp.array(dtype=wp.vec2i), proj: Projection, spp: int, first: int, end: int, chunk: int,
+                tiles_x: int, rects: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32),
+                bad_indices: wp.array(dtype=wp.int32)):
+    """Screen rectangle of each triangle of a chunk, and per tile how many of them touch it.
+    Only this chunk's launch writes row ``chunk`` of tile_counts and bad_indices[chunk], set to 1
+    if a triangle of the chunk has an index out of range (checked here, on every thread, rather
+    than by a serial pass before; such triangles are not read). Triangles [first, end),
+    ITEMS_PER_THREAD per thread."""
+    start = first + wp.tid() * ITEMS_PER_THREAD
+    for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
+        count_triangle(positions, indices, vertex_count, screen, proj, spp, face, chunk, tiles_x, rects,
+                       tile_counts, bad_indices)
 
 
 @wp.kernel
@@ -403,12 +425,9 @@ def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dty
     total[0] = end
 
 
-@wp.kernel
-def fill_bins(rects: wp.array(dtype=wp.vec4i), first: int, chunk: int, tiles_x: int,
-              cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32)):
-    """Append each triangle of a chunk to the bin of every tile its rectangle touches, at this
-    chunk's cursor in that bin."""
-    face = first + wp.tid()
+@wp.func
+def bin_triangle(rects: wp.array(dtype=wp.vec4i), face: int, chunk: int, tiles_x: int,
+                 cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32)):
     r = rects[face]
     if r[0] > r[2]:
         return
@@ -418,6 +437,16 @@ def fill_bins(rects: wp.array(dtype=wp.vec4i), first: int, chunk: int, tiles_x: 
             slot = cursors[chunk, tile]
             bins[slot] = face
             cursors[chunk, tile] = slot + 1
+
+
+@wp.kernel
+def fill_bins(rects: wp.array(dtype=wp.vec4i), first: int, end: int, chunk: int, tiles_x: int,
+              cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32)):
+    """Append each triangle of a chunk, [first, end), to the bin of every tile its rectangle
+    touches, at this chunk's cursor in that bin; ITEMS_PER_THREAD triangles per thread."""
+    start = first + wp.tid() * ITEMS_PER_THREAD
+    for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
+        bin_triangle(rects, face, chunk, tiles_x, cursors, bins)
 
 
 # ---------------------------------------------------------------------- rasterization

@@ -27,6 +27,7 @@ from pbrwarp.kernels.loading import load_for_cpu
 
 NO_TRIANGLE = 0xFFFFFFFFFFFFFFFF
 TILE_SIZE = int(rk.TILE_SIZE)
+ITEMS_PER_THREAD = int(rk.ITEMS_PER_THREAD)
 MAX_IMAGE_SIZE = rk.MAX_IMAGE_SIZE
 # Fewest vertices or triangles worth a launch of their own: below this, a launch costs more
 # than the work it would share (with the stages meeting at barriers, 4096 bins a 15k-triangle
@@ -79,6 +80,11 @@ def _chunks(n: int, parts: int, minimum: int = MIN_CHUNK):
     ``minimum`` elements unless there is only one, covering [0, n)."""
     step = max(minimum, math.ceil(n / parts))
     return [(k, first, min(step, n - first)) for k, first in enumerate(range(0, n, step))]
+
+
+def _launch_threads(items: int) -> int:
+    """Launch dimension for ``items`` handled ITEMS_PER_THREAD per Warp thread."""
+    return -(-items // ITEMS_PER_THREAD)
 
 
 def _load_kernels():
@@ -213,14 +219,14 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     def project(k):
         if k < len(vertex_chunks):
             _, first, count = vertex_chunks[k]
-            wp.launch(rk.project_vertices, dim=count, device="cpu",
-                      inputs=[positions, proj, first, screen, inv_depth])
+            wp.launch(rk.project_vertices, dim=_launch_threads(count), device="cpu",
+                      inputs=[positions, proj, first, first + count, screen, inv_depth])
 
     def count_tiles(k):
         if k < len(chunks):
             _, first, count = chunks[k]
-            wp.launch(rk.count_tiles, dim=count, device="cpu",
-                      inputs=[positions, indices, vertices, screen, proj, spp, first, k, tiles_x, rects,
+            wp.launch(rk.count_tiles, dim=_launch_threads(count), device="cpu",
+                      inputs=[positions, indices, vertices, screen, proj, spp, first, first + count, k, tiles_x, rects,
                               tile_counts, bad_indices])
 
     def allocate_bins():
@@ -237,8 +243,8 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     def fill_bins(k):
         if k < len(chunks):
             _, first, count = chunks[k]
-            wp.launch(rk.fill_bins, dim=count, device="cpu",
-                      inputs=[rects, first, k, tiles_x, cursors, binned["bins"]])
+            wp.launch(rk.fill_bins, dim=_launch_threads(count), device="cpu",
+                      inputs=[rects, first, first + count, k, tiles_x, cursors, binned["bins"]])
 
     def binning_done():
         binned["clock"] = time.perf_counter()
