@@ -24,6 +24,7 @@ import math
 import os
 import statistics
 import sys
+import time
 
 import numpy as np
 import warp as wp
@@ -93,13 +94,23 @@ def bench_case(label, mesh, size, repeats, threads_all):
     def raster(threads, out=buffer, timings=None):
         return visibility_buffer(geometry.positions, geometry.indices, cam, threads=threads, out=out, timings=timings)
 
-    for threads in sorted({1, threads_all}):
-        row[f"raster_ms_{threads}t"] = 1e3 * median_time(lambda: raster(threads), repeats)
-    row[f"raster_new_buffer_ms_{threads_all}t"] = 1e3 * median_time(lambda: raster(threads_all, None), repeats)
+    # 1 and all threads, reused and new buffer, in turn, so that a burst of load on this shared
+    # machine slows every variant alike rather than one of them (their ratios matter)
+    variants = {f"raster_ms_{threads}t": (threads, buffer) for threads in sorted({1, threads_all})}
+    variants[f"raster_new_buffer_ms_{threads_all}t"] = (threads_all, None)
+    times = {key: [] for key in variants}
     splits = []
-    for _ in range(repeats):
-        splits.append({})
-        raster(threads_all, timings=splits[-1])
+    for repeat in range(repeats + 1):  # the first round warms up
+        for key, (threads, out) in variants.items():
+            split = {}
+            t0 = time.perf_counter()
+            raster(threads, out, split)
+            if repeat:
+                times[key].append(time.perf_counter() - t0)
+                if key == f"raster_ms_{threads_all}t":
+                    splits.append(split)
+    for key, seconds in times.items():
+        row[key] = 1e3 * statistics.median(seconds)
     row["binning_ms"] = 1e3 * statistics.median(t["binning"] for t in splits)
     row["rasterization_ms"] = 1e3 * statistics.median(t["raster"] for t in splits)
 
@@ -169,7 +180,7 @@ def markdown(rows, model, threads_all):
         "Samples are pixels (spp 1), all counted, hit or not. Raster: whole visibility_buffer call (binning = "
         "vertex projection, triangle rectangles, bins; rasterization = tile clears and triangles), sample "
         "positions cached, output buffer reused (out=) except in the new-buffer column, whose fresh pages "
-        "page-fault. Ray cast: wp.mesh_query_ray per pixel in row bands on the thread pool. Embree: "
+        "page-fault; the three raster variants are timed in turn, round after round. Ray cast: wp.mesh_query_ray per pixel in row bands on the thread pool. Embree: "
         "Open3D RaycastingScene.cast_rays on all cores, rays precomputed. Same triangle: fraction of pixels "
         "where raster and ray cast name the same triangle (or both none).",
         "",
