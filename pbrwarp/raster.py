@@ -272,3 +272,17 @@ def decode(buffer) -> tuple[np.ndarray, np.ndarray]:
     depths = (entries >> np.uint64(32)).astype(np.uint32).view(np.float32).copy()
     depths[miss] = np.inf
     return ids, depths
+
+
+_scratch_buffers = threading.local()
+
+
+def reused_buffer(purpose: str, height: int, width: int) -> wp.array:
+    """A (height, width) uint64 buffer kept per calling thread and ``purpose`` for ``out=``: fresh
+    memory page-faults on first touch, which costs more than rasterizing into it. Its contents
+    are overwritten by the next call with the same purpose on the same thread."""
+    cache = _scratch_buffers.__dict__.setdefault("buffers", {})
+    buffer = cache.get(purpose)
+    if buffer is None or buffer.shape != (height, width):
+        buffer = cache[purpose] = wp.empty((height, width), dtype=wp.uint64, device="cpu")
+    return buffer

@@ -18,7 +18,7 @@ from .frame import Frame
 from .gpu_scene import upload
 from .ibl import IBL, ibl_for_quality
 from .parallel import run, thread_count
-from .raster import visibility_buffer
+from .raster import reused_buffer, visibility_buffer
 from .shadow_maps import build as build_shadow_maps, no_shadow_maps, shadow_mode
 from .scene import Scene
 from pbrwarp.kernels.camera import CameraData
@@ -166,7 +166,8 @@ def render(
             else no_shadow_maps())
     env, dfg = _environment_arguments(scene, threads) if features.environment else _no_environment()
     if features.visibility == "raster":
-        vbuffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, spp, grid_m, grid_n, seed, threads)
+        vbuffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, spp, grid_m, grid_n, seed, threads,
+                                    out=reused_buffer("camera", height, width * spp))
     else:
         vbuffer = wp.empty((1, 1), dtype=wp.uint64, device="cpu")
 

@@ -12,7 +12,7 @@ import warp as wp
 from . import validate
 from .errors import InputError
 from .lights import DIRECTIONAL, SPOT
-from .raster import decode, visibility_buffer
+from .raster import decode, reused_buffer, visibility_buffer
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.shadow_map import ShadowMaps, ShadowView
 
@@ -120,7 +120,8 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
         pairs = _light_views(light, center, radius, settings)
         spans.append((len(views), len(pairs)))
         for cam, view in pairs:
-            buffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads)
+            buffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads,
+                                       out=reused_buffer("shadow map", cam.height, cam.width))
             depths.append(decode(buffer)[1])
             views.append(view)
     maps = ShadowMaps()
