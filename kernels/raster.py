@@ -120,6 +120,12 @@ def longest_axis(v: wp.vec3) -> int:
 
 
 @wp.func
+def triangle_corners(indices: wp.array(dtype=wp.int32), face: int) -> wp.vec3i:
+    """The vertex indices of triangle ``face`` in a flat index array."""
+    return wp.vec3i(indices[3 * face], indices[3 * face + 1], indices[3 * face + 2])
+
+
+@wp.func
 def ray_triangle_intersection(origin: wp.vec3, direction: wp.vec3, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3):
     """Watertight ray-triangle test (Woop, Benthin and Wald 2013), step for step Warp's
     intersect_ray_tri_woop (warp/native/intersect.h), which ``wp.mesh_query_ray`` runs.
@@ -354,12 +360,10 @@ def clipped_rect(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -> wp.
 @wp.func
 def triangle_rect(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
                   screen: wp.array(dtype=wp.vec2i), proj: Projection, spp: int, face: int) -> wp.vec4i:
-    i0 = indices[3 * face]
-    i1 = indices[3 * face + 1]
-    i2 = indices[3 * face + 2]
-    q0 = screen[i0]
-    q1 = screen[i1]
-    q2 = screen[i2]
+    c = triangle_corners(indices, face)
+    q0 = screen[c[0]]
+    q1 = screen[c[1]]
+    q2 = screen[c[2]]
     if is_projected(q0) and is_projected(q1) and is_projected(q2):
         r = projected_rect(q0, q1, q2, spp, proj.width, proj.height)
         # a one-pixel rectangle holds one sample: test it now, so that the many small triangles of
@@ -369,16 +373,14 @@ def triangle_rect(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp
         return r
     if q0[0] == BEHIND_CAMERA and q1[0] == BEHIND_CAMERA and q2[0] == BEHIND_CAMERA:
         return empty_rect()
-    return clipped_rect(proj, positions[i0], positions[i1], positions[i2])
+    return clipped_rect(proj, positions[c[0]], positions[c[1]], positions[c[2]])
 
 
 # ---------------------------------------------------------------------- binning
 @wp.func
 def has_valid_indices(indices: wp.array(dtype=wp.int32), face: int, vertex_count: int) -> bool:
-    i0 = indices[3 * face]
-    i1 = indices[3 * face + 1]
-    i2 = indices[3 * face + 2]
-    return wp.min(i0, wp.min(i1, i2)) >= 0 and wp.max(i0, wp.max(i1, i2)) < vertex_count
+    c = triangle_corners(indices, face)
+    return wp.min(c[0], wp.min(c[1], c[2])) >= 0 and wp.max(c[0], wp.max(c[1], c[2])) < vertex_count
 
 
 @wp.func
@@ -633,13 +635,12 @@ def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=
         face = bins[k]
         r = rects[face]
         rect = wp.vec4i(wp.max(r[0], tile_x0), wp.max(r[1], tile_y0), wp.min(r[2], tile_x1), wp.min(r[3], tile_y1))
-        i0 = indices[3 * face]
-        i1 = indices[3 * face + 1]
-        i2 = indices[3 * face + 2]
-        q0 = screen[i0]
-        q1 = screen[i1]
-        q2 = screen[i2]
+        c = triangle_corners(indices, face)
+        q0 = screen[c[0]]
+        q1 = screen[c[1]]
+        q2 = screen[c[2]]
         if is_projected(q0) and is_projected(q1) and is_projected(q2):
-            rasterize_triangle(face, q0, q1, q2, inv_depth[i0], inv_depth[i1], inv_depth[i2], rect, samples, spp, out)
+            rasterize_triangle(face, q0, q1, q2, inv_depth[c[0]], inv_depth[c[1]], inv_depth[c[2]], rect, samples, spp,
+                               out)
         else:
-            trace_triangle(face, positions[i0], positions[i1], positions[i2], rect, samples, spp, cam, proj, out)
+            trace_triangle(face, positions[c[0]], positions[c[1]], positions[c[2]], rect, samples, spp, cam, proj, out)

@@ -14,7 +14,7 @@ from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
 from .lights import light_sampler
 from .normal_mapping import perturb_normal
-from .raster import ray_triangle_intersection, visible_triangle
+from .raster import ray_triangle_intersection, triangle_corners, visible_triangle
 from .robust import (
     RAY_FAR,
     clamp_to_float32_max,
@@ -55,9 +55,10 @@ class SurfaceHit:
 def surface_hit(scene: SceneData, face: int, u: float, v: float, ray_dir: wp.vec3) -> SurfaceHit:
     """Hit point from barycentrics (Warp: p = p0 u + p1 v + p2 (1 - u - v)) and the error bound of a ray leaving it."""
     h = SurfaceHit()
-    h.i0 = scene.indices[3 * face]
-    h.i1 = scene.indices[3 * face + 1]
-    h.i2 = scene.indices[3 * face + 2]
+    c = triangle_corners(scene.indices, face)
+    h.i0 = c[0]
+    h.i1 = c[1]
+    h.i2 = c[2]
     p0 = scene.positions[h.i0]
     p1 = scene.positions[h.i1]
     p2 = scene.positions[h.i2]
@@ -198,9 +199,10 @@ def render_kernel(features):
             face = visible_triangle(vbuffer[py, column])
             if face < 0:
                 return -1, 0.0, 0.0
-            p0 = scene.positions[scene.indices[3 * face]]
-            p1 = scene.positions[scene.indices[3 * face + 1]]
-            p2 = scene.positions[scene.indices[3 * face + 2]]
+            c = triangle_corners(scene.indices, face)
+            p0 = scene.positions[c[0]]
+            p1 = scene.positions[c[1]]
+            p2 = scene.positions[c[2]]
             # barycentrics of the ray's crossing of the triangle's plane even where the raster's
             # and the ray test's verdicts on an edge sample differ
             hit, t, u, v = ray_triangle_intersection(origin, d, p0, p1, p2)
