@@ -118,8 +118,9 @@ def render(
     (if tqdm is installed) for renders longer than about a second, False never. ``aovs=False``
     skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are then None).
     ``specialize=False`` runs the kernel with every effect compiled in, and ray-cast primary
-    visibility, instead of the one built for this scene (same image, slower; for comparison). ``quality`` ("fast", "balanced" (the
-    default), "accurate", "reference") picks a preset of BRDF rungs (pbrwarp.brdf.PRESETS);
+    visibility, instead of the one built for this scene (same image, slower; for comparison).
+    ``quality`` ("fast", "balanced" (the default), "accurate", "reference") picks a preset of BRDF
+    rungs (pbrwarp.brdf.PRESETS);
     ``brdf`` (:class:`BRDF`) picks each term's model and wins over ``quality``. ``visibility``
     finds what each camera sample sees: "raycast" (a BVH query per sample), "raster" (a
     rasterized visibility buffer, then the same ray-triangle test on the triangle it names, so

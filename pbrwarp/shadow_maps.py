@@ -3,6 +3,7 @@ with percentage-closer filtering instead of tracing a shadow ray (kernels/shadow
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -148,6 +149,7 @@ def shadow_mode(shadows) -> tuple[object, ShadowMap | None]:
     raise InputError(f'shadows must be "rays" (or True), "map", a pbrwarp.ShadowMap or False, got {shadows!r}')
 
 
+@functools.cache
 def no_shadow_maps() -> ShadowMaps:
     """The render kernel's argument when shadows are ray traced or off."""
     maps = ShadowMaps()
