@@ -43,6 +43,9 @@ GUARD_BAND = wp.constant(wp.float64(131072.0))
 MAX_IMAGE_SIZE = 65536
 # Screen tiles are TILE_SIZE x TILE_SIZE pixels; each is rasterized by one thread, alone.
 TILE_SIZE = wp.constant(32)
+# Triangles whose screen rectangle spans at most this many pixels are drawn as soon as they are
+# projected, with atomic minima, instead of being binned into tiles and read again.
+SMALL_TRIANGLE_PIXELS = wp.constant(16)
 # Vertices or triangles per Warp thread in projection and binning: a CPU launch calls the kernel
 # once per thread and copies its arguments each time, which cost more than one small triangle.
 ITEMS_PER_THREAD = wp.constant(64)
@@ -67,6 +70,11 @@ class Projection:
     half_height: wp.float64
     width: int
     height: int
+    # 1: parallel projection along z, (a, b) in [-1, 1] spanning the view, depth z linear on screen
+    orthographic: int
+    # the sign of signed_area for triangles facing away from the eye (their vertices in
+    # counter-clockwise order seen from behind): +1, or -1 for a mirrored camera
+    back_facing_sign: wp.int64
 
 
 @wp.func_native("wp::uint32 bits; memcpy(&bits, &x, sizeof(bits)); return bits;")
@@ -195,6 +203,12 @@ def snap(x: float) -> wp.int64:
     return wp.int64(wp.float64(x) * SUBPIXEL_SCALE + wp.float64(0.5))
 
 
+@wp.kernel
+def clear_rows(first_row: int, out: wp.array2d(dtype=wp.uint64)):
+    """Rows first_row... of ``out`` (one per thread) set to NO_TRIANGLE."""
+    clear_row_span(out, first_row + wp.tid(), 0, out.shape[1])
+
+
 # ---------------------------------------------------------------------- vertices
 @wp.func
 def camera_coordinates(proj: Projection, p: wp.vec3) -> wp.vec3d:
@@ -203,17 +217,30 @@ def camera_coordinates(proj: Projection, p: wp.vec3) -> wp.vec3d:
 
 @wp.func
 def screen_x(proj: Projection, c: wp.vec3d) -> wp.float64:
+    if proj.orthographic != 0:
+        return (c[0] + wp.float64(1.0)) * proj.half_width
     return (c[0] / c[2] + wp.float64(1.0)) * proj.half_width
 
 
 @wp.func
 def screen_y(proj: Projection, c: wp.vec3d) -> wp.float64:
+    if proj.orthographic != 0:
+        return (wp.float64(1.0) - c[1]) * proj.half_height
     return (wp.float64(1.0) - c[1] / c[2]) * proj.half_height
 
 
 @wp.func
+def depth_weight(proj: Projection, z: wp.float64) -> wp.float64:
+    """What is interpolated linearly in screen space: 1/z in perspective, z itself in parallel
+    projection (see rasterize_triangle)."""
+    if proj.orthographic != 0:
+        return z
+    return wp.float64(1.0) / z
+
+
+@wp.func
 def project_vertex(positions: wp.array(dtype=wp.vec3), proj: Projection, i: int, screen: wp.array(dtype=wp.vec2i),
-                   inv_depth: wp.array(dtype=wp.float64)):
+                   depth_weights: wp.array(dtype=wp.float64)):
     c = camera_coordinates(proj, positions[i])
     if c[2] <= wp.float64(0.0):
         screen[i] = wp.vec2i(BEHIND_CAMERA, 0)
@@ -222,20 +249,20 @@ def project_vertex(positions: wp.array(dtype=wp.vec3), proj: Projection, i: int,
     y = screen_y(proj, c)
     if wp.abs(x) <= GUARD_BAND and wp.abs(y) <= GUARD_BAND:
         screen[i] = wp.vec2i(int(wp.round(x * SUBPIXEL_SCALE)), int(wp.round(y * SUBPIXEL_SCALE)))
-        inv_depth[i] = wp.float64(1.0) / c[2]
+        depth_weights[i] = depth_weight(proj, c[2])
     else:
         screen[i] = wp.vec2i(OUTSIDE_GUARD_BAND, 0)
 
 
 @wp.kernel
 def project_vertices(positions: wp.array(dtype=wp.vec3), proj: Projection, first: int, end: int,
-                     screen: wp.array(dtype=wp.vec2i), inv_depth: wp.array(dtype=wp.float64)):
+                     screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64)):
     """Snapped screen position (x, y) and 1/z of vertices [first, end), ITEMS_PER_THREAD per
     thread, or x = BEHIND_CAMERA / OUTSIDE_GUARD_BAND. Positions and depths are apart so that
     binning reads 8 bytes a vertex."""
     start = first + wp.tid() * ITEMS_PER_THREAD
     for i in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
-        project_vertex(positions, proj, i, screen, inv_depth)
+        project_vertex(positions, proj, i, screen, depth_weights)
 
 
 @wp.func
@@ -269,17 +296,11 @@ def sampled_pixel_range(lo: wp.int64, hi: wp.int64, spp: int) -> wp.vec2i:
 
 @wp.func
 def projected_rect(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, spp: int, width: int, height: int) -> wp.vec4i:
-    """Pixels with samples a projected triangle may cover; empty for a zero-area (degenerate) one."""
-    x0 = wp.int64(q0[0])
-    y0 = wp.int64(q0[1])
-    x1 = wp.int64(q1[0])
-    y1 = wp.int64(q1[1])
-    x2 = wp.int64(q2[0])
-    y2 = wp.int64(q2[1])
-    if (x1 - x0) * (y2 - y0) == (y1 - y0) * (x2 - x0):
-        return empty_rect()
-    xs = sampled_pixel_range(wp.min(x0, wp.min(x1, x2)), wp.max(x0, wp.max(x1, x2)), spp)
-    ys = sampled_pixel_range(wp.min(y0, wp.min(y1, y2)), wp.max(y0, wp.max(y1, y2)), spp)
+    """Pixels with samples a projected triangle may cover."""
+    xs = sampled_pixel_range(wp.int64(wp.min(q0[0], wp.min(q1[0], q2[0]))),
+                             wp.int64(wp.max(q0[0], wp.max(q1[0], q2[0]))), spp)
+    ys = sampled_pixel_range(wp.int64(wp.min(q0[1], wp.min(q1[1], q2[1]))),
+                             wp.int64(wp.max(q0[1], wp.max(q1[1], q2[1]))), spp)
     return clamped_rect(xs[0], ys[0], xs[1], ys[1], width, height)
 
 
@@ -357,108 +378,6 @@ def clipped_rect(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -> wp.
     return clamped_rect(x0, y0, x1, y1, proj.width, proj.height)
 
 
-@wp.func
-def triangle_rect(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
-                  screen: wp.array(dtype=wp.vec2i), proj: Projection, spp: int, face: int) -> wp.vec4i:
-    c = triangle_corners(indices, face)
-    q0 = screen[c[0]]
-    q1 = screen[c[1]]
-    q2 = screen[c[2]]
-    if is_projected(q0) and is_projected(q1) and is_projected(q2):
-        r = projected_rect(q0, q1, q2, spp, proj.width, proj.height)
-        # a one-pixel rectangle holds one sample: test it now, so that the many small triangles of
-        # a dense mesh that fall between pixel centres are never binned nor read again
-        if spp == 1 and r[0] == r[2] and r[1] == r[3] and not covers_pixel_centre(q0, q1, q2, r[0], r[1]):
-            return empty_rect()
-        return r
-    if q0[0] == BEHIND_CAMERA and q1[0] == BEHIND_CAMERA and q2[0] == BEHIND_CAMERA:
-        return empty_rect()
-    return clipped_rect(proj, positions[c[0]], positions[c[1]], positions[c[2]])
-
-
-# ---------------------------------------------------------------------- binning
-@wp.func
-def has_valid_indices(indices: wp.array(dtype=wp.int32), face: int, vertex_count: int) -> bool:
-    c = triangle_corners(indices, face)
-    return wp.min(c[0], wp.min(c[1], c[2])) >= 0 and wp.max(c[0], wp.max(c[1], c[2])) < vertex_count
-
-
-@wp.func
-def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
-                   screen: wp.array(dtype=wp.vec2i), proj: Projection, spp: int, face: int, chunk: int,
-                   tiles_x: int, rects: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32),
-                   bad_indices: wp.array(dtype=wp.int32)):
-    if not has_valid_indices(indices, face, vertex_count):
-        bad_indices[chunk] = 1
-        rects[face] = empty_rect()
-        return
-    r = triangle_rect(positions, indices, screen, proj, spp, face)
-    rects[face] = r
-    if r[0] > r[2]:
-        return
-    for ty in range(r[1] / TILE_SIZE, r[3] / TILE_SIZE + 1):
-        for tx in range(r[0] / TILE_SIZE, r[2] / TILE_SIZE + 1):
-            tile = ty * tiles_x + tx
-            tile_counts[chunk, tile] = tile_counts[chunk, tile] + 1
-
-
-@wp.kernel
-def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
-                screen: wp.array(dtype=wp.vec2i), proj: Projection, spp: int, first: int, end: int, chunk: int,
-                tiles_x: int, rects: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32),
-                bad_indices: wp.array(dtype=wp.int32)):
-    """Screen rectangle of each triangle of a chunk, and per tile how many of them touch it.
-    Only this chunk's launch writes row ``chunk`` of tile_counts and bad_indices[chunk], set to 1
-    if a triangle of the chunk has an index out of range (checked here, on every thread, rather
-    than by a serial pass before; such triangles are not read). Triangles [first, end),
-    ITEMS_PER_THREAD per thread."""
-    start = first + wp.tid() * ITEMS_PER_THREAD
-    for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
-        count_triangle(positions, indices, vertex_count, screen, proj, spp, face, chunk, tiles_x, rects,
-                       tile_counts, bad_indices)
-
-
-@wp.kernel
-def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dtype=wp.int32),
-                bin_start: wp.array(dtype=wp.int32), total: wp.array(dtype=wp.int64)):
-    """Launched on one thread: bins are contiguous per tile, each chunk's part after the previous
-    chunks'. bin_start[tile] is where a tile's bin starts, cursors[chunk, tile] where a chunk's
-    part of it does, total[0] the length of all bins (exact in int64; offsets are meaningful only
-    if it is below 2^31)."""
-    end = wp.int64(0)
-    for tile in range(tile_counts.shape[1]):
-        bin_start[tile] = int(end)
-        for chunk in range(tile_counts.shape[0]):
-            cursors[chunk, tile] = int(end)
-            end = end + wp.int64(tile_counts[chunk, tile])
-    bin_start[tile_counts.shape[1]] = int(end)
-    total[0] = end
-
-
-@wp.func
-def bin_triangle(rects: wp.array(dtype=wp.vec4i), face: int, chunk: int, tiles_x: int,
-                 cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32)):
-    r = rects[face]
-    if r[0] > r[2]:
-        return
-    for ty in range(r[1] / TILE_SIZE, r[3] / TILE_SIZE + 1):
-        for tx in range(r[0] / TILE_SIZE, r[2] / TILE_SIZE + 1):
-            tile = ty * tiles_x + tx
-            slot = cursors[chunk, tile]
-            bins[slot] = face
-            cursors[chunk, tile] = slot + 1
-
-
-@wp.kernel
-def fill_bins(rects: wp.array(dtype=wp.vec4i), first: int, end: int, chunk: int, tiles_x: int,
-              cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32)):
-    """Append each triangle of a chunk, [first, end), to the bin of every tile its rectangle
-    touches, at this chunk's cursor in that bin; ITEMS_PER_THREAD triangles per thread."""
-    start = first + wp.tid() * ITEMS_PER_THREAD
-    for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
-        bin_triangle(rects, face, chunk, tiles_x, cursors, bins)
-
-
 # ---------------------------------------------------------------------- rasterization
 @wp.func
 def owns_boundary(a: wp.int64, b: wp.int64) -> bool:
@@ -469,10 +388,17 @@ def owns_boundary(a: wp.int64, b: wp.int64) -> bool:
     return a > wp.int64(0) or (a == wp.int64(0) and b > wp.int64(0))
 
 
-@wp.func
-def keep_nearest(out: wp.array2d(dtype=wp.uint64), row: int, col: int, entry: wp.uint64):
-    if entry < out[row, col]:
-        out[row, col] = entry
+@wp.func_native("""
+    wp::uint64* slot = (wp::uint64*)((char*)out.data + (size_t)row * out.strides[0]) + col;
+    if (!shared) { if (entry < *slot) *slot = entry; return; }
+    wp::uint64 current = __atomic_load_n(slot, __ATOMIC_RELAXED);
+    while (entry < current &&
+           !__atomic_compare_exchange_n(slot, &current, entry, true, __ATOMIC_RELAXED, __ATOMIC_RELAXED)) {}
+    """)
+def keep_nearest(out: wp.array2d(dtype=wp.uint64), row: int, col: int, entry: wp.uint64, shared: bool):
+    """out[row, col] = min(out[row, col], entry); atomically if ``shared`` (the sample may be
+    written by another thread at the same time), else plainly (its tile is this thread's)."""
+    ...
 
 
 @wp.func
@@ -508,11 +434,21 @@ def covers_pixel_centre(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, px: int, py: i
 
 
 @wp.func
+def interpolated_depth(weights: wp.float64, double_area: wp.float64, orthographic: int) -> float:
+    if orthographic != 0:
+        return float(weights / double_area)
+    return float(double_area / weights)
+
+
+@wp.func
 def rasterize_triangle(face: int, q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: wp.float64, w1: wp.float64,
                        w2: wp.float64, rect: wp.vec4i,
-                       samples: wp.array2d(dtype=wp.vec2), spp: int, out: wp.array2d(dtype=wp.uint64)):
+                       samples: wp.array2d(dtype=wp.vec2), spp: int, orthographic: int, out: wp.array2d(dtype=wp.uint64),
+                       shared: bool):
     """Edge-function coverage of the samples of ``rect`` by a projected triangle, exact in int64;
-    depth from 1/z interpolated linearly in screen space (perspective-correct)."""
+    depth from the vertices' depth weights w (project_vertex) interpolated linearly in screen
+    space: 1/z, perspective-correct, or z in parallel projection. ``shared``: other threads may
+    write the same samples (see keep_nearest)."""
     x0 = wp.int64(q0[0])
     y0 = wp.int64(q0[1])
     x1 = wp.int64(q1[0])
@@ -557,12 +493,10 @@ def rasterize_triangle(face: int, q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: 
     c0 = c0 + bias0
     c1 = c1 + bias1
     c2 = c2 + bias2
-    # 1/z = sum_i e_i 1/z_i / area, with the biases taken back out
-    inv_area = wp.float64(1.0) / wp.float64(area)
-    k0 = w0 * inv_area
-    k1 = w1 * inv_area
-    k2 = w2 * inv_area
-    k_bias = -(wp.float64(bias0) * k0 + wp.float64(bias1) * k1 + wp.float64(bias2) * k2)
+    # sum_i e_i w_i / area, the biases taken back out, is 1/z (perspective) or z (parallel): z is
+    # one division per covered sample, none for a triangle that covers none
+    double_area = wp.float64(area)
+    w_bias = -(wp.float64(bias0) * w0 + wp.float64(bias1) * w1 + wp.float64(bias2) * w2)
     if spp == 1:
         # pixel centres: step the edge functions along the row instead of loading samples
         step0 = a0 * PIXEL
@@ -576,8 +510,9 @@ def rasterize_triangle(face: int, q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: 
             e2 = a2 * sx + b2 * sy + c2
             for px in range(rect[0], rect[2] + 1):
                 if (e0 | e1 | e2) >= wp.int64(0):
-                    inv_z = k_bias + k0 * wp.float64(e0) + k1 * wp.float64(e1) + k2 * wp.float64(e2)
-                    keep_nearest(out, py, px, visibility_entry(float(wp.float64(1.0) / inv_z), face))
+                    weights = w_bias + w0 * wp.float64(e0) + w1 * wp.float64(e1) + w2 * wp.float64(e2)
+                    keep_nearest(out, py, px, visibility_entry(interpolated_depth(weights, double_area, orthographic),
+                                                               face), shared)
                 e0 = e0 + step0
                 e1 = e1 + step1
                 e2 = e2 + step2
@@ -591,8 +526,9 @@ def rasterize_triangle(face: int, q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: 
             e1 = a1 * sx + b1 * sy + c1
             e2 = a2 * sx + b2 * sy + c2
             if (e0 | e1 | e2) >= wp.int64(0):
-                inv_z = k_bias + k0 * wp.float64(e0) + k1 * wp.float64(e1) + k2 * wp.float64(e2)
-                keep_nearest(out, py, col, visibility_entry(float(wp.float64(1.0) / inv_z), face))
+                weights = w_bias + w0 * wp.float64(e0) + w1 * wp.float64(e1) + w2 * wp.float64(e2)
+                keep_nearest(out, py, col, visibility_entry(interpolated_depth(weights, double_area, orthographic), face),
+                             shared)
 
 
 @wp.func
@@ -609,19 +545,154 @@ def trace_triangle(face: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, rect: wp.ve
             hit, t, u, v = ray_triangle_intersection(cam.eye, d, p0, p1, p2)
             if hit:
                 z = wp.float64(t) * wp.dot(depth_row, wp.vec3d(wp.float64(d[0]), wp.float64(d[1]), wp.float64(d[2])))
-                keep_nearest(out, py, col, visibility_entry(float(z), face))
+                keep_nearest(out, py, col, visibility_entry(float(z), face), False)
+
+
+# ---------------------------------------------------------------------- binning
+@wp.func
+def has_valid_indices(indices: wp.array(dtype=wp.int32), face: int, vertex_count: int) -> bool:
+    c = triangle_corners(indices, face)
+    return wp.min(c[0], wp.min(c[1], c[2])) >= 0 and wp.max(c[0], wp.max(c[1], c[2])) < vertex_count
+
+
+@wp.func
+def signed_area(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i) -> wp.int64:
+    """Twice the signed area of a projected triangle, exact."""
+    return ((wp.int64(q1[0]) - wp.int64(q0[0])) * (wp.int64(q2[1]) - wp.int64(q0[1]))
+            - (wp.int64(q1[1]) - wp.int64(q0[1])) * (wp.int64(q2[0]) - wp.int64(q0[0])))
+
+
+@wp.func
+def rect_pixels(r: wp.vec4i) -> int:
+    return (r[2] - r[0] + 1) * (r[3] - r[1] + 1)
+
+
+@wp.func
+def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
+                   screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64), proj: Projection,
+                   samples: wp.array2d(dtype=wp.vec2), spp: int, face: int, chunk: int, tiles_x: int,
+                   cull_back_faces: wp.array(dtype=wp.uint8), first: int, binned_count: wp.array(dtype=wp.int32),
+                   binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
+                   tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
+                   out: wp.array2d(dtype=wp.uint64)):
+    if not has_valid_indices(indices, face, vertex_count):
+        bad_indices[chunk] = 1
+        return
+    c = triangle_corners(indices, face)
+    q0 = screen[c[0]]
+    q1 = screen[c[1]]
+    q2 = screen[c[2]]
+    r = empty_rect()
+    if is_projected(q0) and is_projected(q1) and is_projected(q2):
+        area = signed_area(q0, q1, q2)
+        if area == wp.int64(0):
+            return
+        if cull_back_faces.shape[0] > 0:
+            if cull_back_faces[face] != wp.uint8(0) and area * proj.back_facing_sign > wp.int64(0):
+                return
+        r = projected_rect(q0, q1, q2, spp, proj.width, proj.height)
+        if r[0] > r[2]:
+            return
+        if rect_pixels(r) <= SMALL_TRIANGLE_PIXELS:
+            # drawn now, with atomic minima, rather than binned and read again: most triangles of a
+            # dense mesh are this small. A one-pixel rectangle with one sample is tested first, so
+            # that those falling between pixel centres cost no more.
+            if spp == 1 and rect_pixels(r) == 1:
+                if not covers_pixel_centre(q0, q1, q2, r[0], r[1]):
+                    return
+            rasterize_triangle(face, q0, q1, q2, depth_weights[c[0]], depth_weights[c[1]], depth_weights[c[2]], r, samples, spp,
+                               proj.orthographic, out, True)
+            return
+    else:
+        if proj.orthographic != 0:
+            return
+        if q0[0] == BEHIND_CAMERA and q1[0] == BEHIND_CAMERA and q2[0] == BEHIND_CAMERA:
+            return
+        r = clipped_rect(proj, positions[c[0]], positions[c[1]], positions[c[2]])
+        if r[0] > r[2]:
+            return
+    # a CPU launch runs its threads one after another, so this chunk's count needs no atomics
+    slot = first + binned_count[chunk]
+    binned_count[chunk] = binned_count[chunk] + 1
+    binned_face[slot] = face
+    binned_rect[slot] = r
+    for ty in range(r[1] / TILE_SIZE, r[3] / TILE_SIZE + 1):
+        for tx in range(r[0] / TILE_SIZE, r[2] / TILE_SIZE + 1):
+            tile = ty * tiles_x + tx
+            tile_counts[chunk, tile] = tile_counts[chunk, tile] + 1
+
+
+@wp.kernel
+def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
+                screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64), proj: Projection,
+                samples: wp.array2d(dtype=wp.vec2), spp: int, first: int, end: int, chunk: int, tiles_x: int,
+                cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
+                binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
+                tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
+                out: wp.array2d(dtype=wp.uint64)):
+    """Small triangles of a chunk drawn into ``out`` (cleared beforehand) at once; the others
+    that may cover a sample listed, with their screen rectangles, at binned_face and binned_rect
+    [first, first + binned_count[chunk]), and counted per tile they touch. Only this chunk's
+    launch writes its part of those, row ``chunk`` of tile_counts and bad_indices[chunk], set to 1 if a
+    triangle of the chunk has an index out of range (checked here, on every thread, rather than
+    by a serial pass before; such triangles are not read). Projected triangles whose flag in
+    ``cull_back_faces`` (empty: none) is set are dropped when they face away. Triangles
+    [first, end), ITEMS_PER_THREAD per thread."""
+    start = first + wp.tid() * ITEMS_PER_THREAD
+    for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
+        count_triangle(positions, indices, vertex_count, screen, depth_weights, proj, samples, spp, face, chunk, tiles_x,
+                       cull_back_faces, first, binned_count, binned_face, binned_rect, tile_counts, bad_indices, out)
+
+
+@wp.kernel
+def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dtype=wp.int32),
+                bin_start: wp.array(dtype=wp.int32), total: wp.array(dtype=wp.int64)):
+    """Launched on one thread: bins are contiguous per tile, each chunk's part after the previous
+    chunks'. bin_start[tile] is where a tile's bin starts, cursors[chunk, tile] where a chunk's
+    part of it does, total[0] the length of all bins (exact in int64; offsets are meaningful only
+    if it is below 2^31)."""
+    end = wp.int64(0)
+    for tile in range(tile_counts.shape[1]):
+        bin_start[tile] = int(end)
+        for chunk in range(tile_counts.shape[0]):
+            cursors[chunk, tile] = int(end)
+            end = end + wp.int64(tile_counts[chunk, tile])
+    bin_start[tile_counts.shape[1]] = int(end)
+    total[0] = end
+
+
+@wp.func
+def bin_triangle(binned_rect: wp.array(dtype=wp.vec4i), slot: int, chunk: int, tiles_x: int,
+                 cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32)):
+    r = binned_rect[slot]
+    for ty in range(r[1] / TILE_SIZE, r[3] / TILE_SIZE + 1):
+        for tx in range(r[0] / TILE_SIZE, r[2] / TILE_SIZE + 1):
+            tile = ty * tiles_x + tx
+            at = cursors[chunk, tile]
+            bins[at] = slot
+            cursors[chunk, tile] = at + 1
+
+
+@wp.kernel
+def fill_bins(binned_rect: wp.array(dtype=wp.vec4i), first: int, end: int, chunk: int, tiles_x: int,
+              cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32)):
+    """Append the slot of each listed triangle of a chunk, slots [first, end), to the bin of every
+    tile its rectangle touches, at this chunk's cursor in that bin; ITEMS_PER_THREAD per thread."""
+    start = first + wp.tid() * ITEMS_PER_THREAD
+    for slot in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
+        bin_triangle(binned_rect, slot, chunk, tiles_x, cursors, bins)
 
 
 @wp.kernel
 def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
-                    screen: wp.array(dtype=wp.vec2i), inv_depth: wp.array(dtype=wp.float64),
-                    rects: wp.array(dtype=wp.vec4i),
+                    screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64),
+                    binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
                     bin_start: wp.array(dtype=wp.int32), bins: wp.array(dtype=wp.int32),
                     samples: wp.array2d(dtype=wp.vec2), spp: int, cam: CameraData, proj: Projection,
                     tiles_x: int, queue: wp.array(dtype=wp.int32), out: wp.array2d(dtype=wp.uint64)):
-    """Tiles taken one at a time from ``queue``, shared by every launch: clear each, then draw
-    every triangle of its bin into it. A tile is taken by exactly one launch, so its samples need
-    no atomics; launch with one thread per tile, as any launch may take them all."""
+    """Tiles taken one at a time from ``queue``, shared by every launch: draw every triangle of
+    its bin into it. A tile is taken by exactly one launch, so its samples need no atomics;
+    launch with one thread per tile, as any launch may take them all."""
     tile = take_next_item(queue)
     if tile >= bin_start.shape[0] - 1:
         return
@@ -629,18 +700,17 @@ def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=
     tile_y0 = (tile / tiles_x) * TILE_SIZE
     tile_x1 = wp.min(tile_x0 + TILE_SIZE, proj.width) - 1
     tile_y1 = wp.min(tile_y0 + TILE_SIZE, proj.height) - 1
-    for py in range(tile_y0, tile_y1 + 1):
-        clear_row_span(out, py, tile_x0 * spp, (tile_x1 + 1 - tile_x0) * spp)
     for k in range(bin_start[tile], bin_start[tile + 1]):
-        face = bins[k]
-        r = rects[face]
+        slot = bins[k]
+        face = binned_face[slot]
+        r = binned_rect[slot]
         rect = wp.vec4i(wp.max(r[0], tile_x0), wp.max(r[1], tile_y0), wp.min(r[2], tile_x1), wp.min(r[3], tile_y1))
         c = triangle_corners(indices, face)
         q0 = screen[c[0]]
         q1 = screen[c[1]]
         q2 = screen[c[2]]
         if is_projected(q0) and is_projected(q1) and is_projected(q2):
-            rasterize_triangle(face, q0, q1, q2, inv_depth[c[0]], inv_depth[c[1]], inv_depth[c[2]], rect, samples, spp,
-                               out)
+            rasterize_triangle(face, q0, q1, q2, depth_weights[c[0]], depth_weights[c[1]], depth_weights[c[2]], rect, samples, spp,
+                               proj.orthographic, out, False)
         else:
             trace_triangle(face, positions[c[0]], positions[c[1]], positions[c[2]], rect, samples, spp, cam, proj, out)

@@ -12,14 +12,17 @@ CUBE_FACES = 6
 
 @wp.struct
 class ShadowView:
-    """One depth map's pinhole camera: camera coordinates (a, b, z) = to_camera (p - eye), texel
-    ((a/z + 1) res/2, (1 - b/z) res/2), as the rasterizer's Projection."""
+    """One depth map's view, as the rasterizer's Projection: camera coordinates (a, b, z) =
+    to_camera (p - eye), texel ((a/z + 1) res/2, (1 - b/z) res/2) for a pinhole view (point and
+    spot lights), ((a + 1) res/2, (1 - b) res/2) for a parallel one (directional lights)."""
 
     eye: wp.vec3
     to_camera: wp.mat33
     resolution: int
-    # world size of a texel at depth z, over z: 2 tan(fov/2) / resolution
-    texel_per_depth: float
+    orthographic: int
+    # world size of a texel: at depth 1 for a pinhole view (2 tan(fov/2) / resolution; it grows
+    # with depth), everywhere for a parallel one
+    texel_size: float
 
 
 @wp.struct
@@ -61,13 +64,20 @@ def fraction_lit(maps: ShadowMaps, view_index: int, p: wp.vec3, ng: wp.vec3) -> 
     depth = (view.to_camera * (p - view.eye))[2]
     if depth <= 0.0:
         return 1.0
-    texel = view.texel_per_depth * depth * maps.bias
+    texel = view.texel_size * maps.bias
+    if view.orthographic == 0:
+        texel = texel * depth
     c = view.to_camera * (p + ng * texel - view.eye)
     if c[2] <= 0.0:
         return 1.0
+    a = c[0]
+    b = c[1]
+    if view.orthographic == 0:
+        a = a / c[2]
+        b = b / c[2]
     half = 0.5 * float(view.resolution)
-    x = (c[0] / c[2] + 1.0) * half - 0.5
-    y = (1.0 - c[1] / c[2]) * half - 0.5
+    x = (a + 1.0) * half - 0.5
+    y = (1.0 - b) * half - 0.5
     if x < -0.5 or y < -0.5 or x > float(view.resolution) - 0.5 or y > float(view.resolution) - 0.5:
         return 1.0
     first_x = int(wp.round(x)) - maps.pcf / 2

@@ -220,3 +220,42 @@ def upload(scene) -> GpuScene:
     data.lights = wp.array(lights if lights else [LightData()], dtype=LightData, device="cpu")
     data.num_lights = len(lights)
     return GpuScene(data=data, material_rows=materials, _keep=(geometry, texels, data.materials, data.lights))
+
+
+def _is_closed_volume(prim) -> bool:
+    """Whether a primitive bounds a volume with its faces turned outwards (watertight, consistently
+    wound, positive volume); cached, as the edge checks are costly for big meshes. Vertices are
+    not merged: a mesh split at UV seams counts as open."""
+    cached = prim.__dict__.get("_closed_volume")
+    if cached is None:
+        import trimesh
+
+        cached = prim.__dict__["_closed_volume"] = bool(
+            trimesh.Trimesh(prim.positions, prim.faces, process=False).is_volume)
+    return cached
+
+
+def back_face_culling(scene, gpu: GpuScene, eye) -> tuple[wp.array | None, int]:
+    """(per-triangle uint8 flags for raster.visibility_buffer's ``cull_back_faces``, or None,
+    and how many meshes are culled). A mesh's back faces are never the surface a camera ray
+    shows when its material is single-sided (the render kernel passes through them) or when it
+    is a closed volume and the eye lies outside its bounding box (a ray from outside enters it
+    through a front face first), so they need not be drawn."""
+    eye = np.asarray(eye, dtype=np.float64)
+    flags = []
+    for prim in scene.primitives:
+        culled = not prim.material.double_sided
+        if not culled and prim.material.alpha_mode != "MASK":
+            lo, hi = prim.positions.min(axis=0), prim.positions.max(axis=0)
+            culled = bool(np.any(eye < lo) or np.any(eye > hi)) and _is_closed_volume(prim)
+        flags.append(culled)
+    if not any(flags):
+        return None, 0
+    geometry = gpu._keep[0]
+    cache = geometry.__dict__.setdefault("_culling", {})
+    key = tuple(flags)
+    if key not in cache:
+        cache.clear()
+        per_mesh = np.array(flags, dtype=np.uint8)
+        cache[key] = wp.array(per_mesh[geometry.face_primitive.numpy()], dtype=wp.uint8, device="cpu")
+    return cache[key], sum(flags)

@@ -65,7 +65,7 @@ RASTER_SECONDS_PER_TRIANGLE = 33.7e-9
 RASTER_SECONDS_PER_SAMPLE = 3.2e-9
 RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 4.96e-9
 
-KERNELS = (rk.sample_positions, rk.project_vertices, rk.count_tiles, rk.bin_offsets, rk.fill_bins,
+KERNELS = (rk.sample_positions, rk.clear_rows, rk.project_vertices, rk.count_tiles, rk.bin_offsets, rk.fill_bins,
            rk.rasterize_tiles)
 
 
@@ -94,6 +94,7 @@ def _load_kernels():
 
 
 _sample_cache: dict = {}
+_NO_CULLING = wp.empty(0, dtype=wp.uint8, device="cpu")
 
 
 def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
@@ -126,8 +127,10 @@ def sample_positions(width: int, height: int, spp: int = 1, grid_m: int = 1, gri
     return _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, thread_count(threads))
 
 
-def projection(cam: CameraData) -> rk.Projection:
-    """World-to-screen mapping of ``cam`` in float64, the exact inverse of camera_ray_direction."""
+def projection(cam: CameraData, orthographic: bool = False) -> rk.Projection:
+    """World-to-screen mapping of ``cam`` in float64, the exact inverse of camera_ray_direction;
+    or, ``orthographic``, the parallel projection along cam.forward whose view spans
+    cam.right and cam.up (half-extents in world units) about cam.eye."""
     axes = np.array([cam.right, cam.up, cam.forward], dtype=np.float64).T
     if not np.all(np.isfinite(axes)) or abs(np.linalg.det(axes)) < 1e-300:
         raise InputError("camera axes must be finite and linearly independent")
@@ -137,6 +140,10 @@ def projection(cam: CameraData) -> rk.Projection:
     proj.half_width = 0.5 * cam.width
     proj.half_height = 0.5 * cam.height
     proj.width, proj.height = cam.width, cam.height
+    proj.orthographic = int(bool(orthographic))
+    # a triangle whose vertices run counter-clockwise seen from the eye projects with area of
+    # the sign of det(axes) (screen y points down)
+    proj.back_facing_sign = -1 if np.linalg.det(axes) > 0 else 1
     return proj
 
 
@@ -169,19 +176,26 @@ def _check_geometry(positions, indices) -> tuple[int, int]:
 
 def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, spp: int = 1, grid_m: int = 1,
                       grid_n: int = 1, seed: int = 0, threads: int | None = None,
-                      out: wp.array | None = None, timings: dict | None = None) -> wp.array:
+                      out: wp.array | None = None, timings: dict | None = None,
+                      cull_back_faces: wp.array | None = None, orthographic: bool = False) -> wp.array:
     """The nearest triangle of every camera sample: a (cam.height, cam.width * spp) uint64
     wp.array, sample s of pixel (px, py) at [py, px * spp + s] (see :func:`sample_positions`).
 
     Each entry is (float32 bits of depth) << 32 | triangle id, NO_TRIANGLE (all ones) where no
     triangle is hit; depth is camera-space z (the coefficient of cam.forward in point - eye),
-    the lower id wins exact depth ties. Both facings are drawn; degenerate triangles cover
-    nothing; triangles behind the camera are dropped and those crossing the camera plane or
+    the lower id wins exact depth ties. Both facings are drawn, except triangles flagged (nonzero)
+    in ``cull_back_faces`` (a uint8 wp.array, one entry per triangle), which are dropped where
+    they face away from the eye; degenerate triangles cover nothing; triangles behind the camera are dropped and those crossing the camera plane or
     leaving the guard band are ray-tested per sample. ``threads`` defaults to every core; the
     buffer does not depend on it. ``out``, a buffer of that shape and dtype on the CPU, is filled
     and returned instead of a new one: reusing it saves the page faults of fresh memory, which
     take a third of a 2048² frame and do not scale across threads. ``timings``, if a dict,
     receives seconds per stage ("samples", "binning", "raster").
+
+    ``orthographic`` draws the parallel projection along cam.forward instead (see
+    :func:`projection`), depth then the distance in front of the plane through cam.eye; only
+    triangles wholly in front of that plane and within the guard band are drawn (shadow maps of
+    directional lights place it behind the whole scene).
     """
     threads = thread_count(threads)
     if not isinstance(cam, CameraData.cls):
@@ -192,7 +206,12 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     if out is not None and (not isinstance(out, wp.array) or out.dtype != wp.uint64 or out.device.is_cuda
                             or out.shape != (height, width * spp) or not out.is_contiguous):
         raise InputError(f"out must be a contiguous CPU wp.array of uint64 of shape {(height, width * spp)}")
-    proj = projection(cam)
+    if cull_back_faces is None:
+        cull_back_faces = _NO_CULLING
+    elif (not isinstance(cull_back_faces, wp.array) or cull_back_faces.dtype != wp.uint8
+          or cull_back_faces.shape != (triangles,) or cull_back_faces.device.is_cuda):
+        raise InputError(f"cull_back_faces must be a CPU wp.array of uint8 with one entry per triangle ({triangles})")
+    proj = projection(cam, orthographic)
     _load_kernels()
     clock = time.perf_counter()
     samples = _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads)
@@ -204,8 +223,10 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     chunks = _chunks(triangles, threads)
     scratch = _scratch.arrays  # the calling thread's, also when a pool thread allocates the bins
     screen = _scratch_array(scratch, "screen", vertices, wp.vec2i)
-    inv_depth = _scratch_array(scratch, "inv_depth", vertices, wp.float64)
-    rects = _scratch_array(scratch, "rects", triangles, wp.vec4i)
+    depth_weights = _scratch_array(scratch, "depth_weights", vertices, wp.float64)
+    binned_face = _scratch_array(scratch, "binned_face", triangles, wp.int32)
+    binned_rect = _scratch_array(scratch, "binned_rect", triangles, wp.vec4i)
+    binned_count = wp.zeros(max(len(chunks), 1), dtype=wp.int32, device="cpu")
     tile_counts = wp.zeros((max(len(chunks), 1), tiles), dtype=wp.int32, device="cpu")
     bad_indices = wp.zeros(max(len(chunks), 1), dtype=wp.int32, device="cpu")
     cursors = wp.empty(tile_counts.shape, dtype=wp.int32, device="cpu")
@@ -216,18 +237,25 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
         out = huge_pages.empty((height, width * spp), wp.uint64)
     binned = {}
 
+    row_chunks = _chunks(height, threads, minimum=1)
+
     def project(k):
+        # the buffer is cleared first: small triangles are drawn into it while binning
+        if k < len(row_chunks):
+            _, first_row, rows = row_chunks[k]
+            wp.launch(rk.clear_rows, dim=rows, device="cpu", inputs=[first_row, out])
         if k < len(vertex_chunks):
             _, first, count = vertex_chunks[k]
             wp.launch(rk.project_vertices, dim=_launch_threads(count), device="cpu",
-                      inputs=[positions, proj, first, first + count, screen, inv_depth])
+                      inputs=[positions, proj, first, first + count, screen, depth_weights])
 
     def count_tiles(k):
         if k < len(chunks):
             _, first, count = chunks[k]
             wp.launch(rk.count_tiles, dim=_launch_threads(count), device="cpu",
-                      inputs=[positions, indices, vertices, screen, proj, spp, first, first + count, k, tiles_x, rects,
-                              tile_counts, bad_indices])
+                      inputs=[positions, indices, vertices, screen, depth_weights, proj, samples, spp, first, first + count,
+                              k, tiles_x, cull_back_faces, binned_count, binned_face, binned_rect, tile_counts,
+                              bad_indices, out])
 
     def allocate_bins():
         if bad_indices.numpy().any():
@@ -239,12 +267,15 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
         if total >= 2**31:
             raise InputError(f"too many triangle-tile pairs ({total}) for int32 bins")
         binned["bins"] = _scratch_array(scratch, "bins", total, wp.int32)
+        binned["count"] = binned_count.numpy()
 
     def fill_bins(k):
         if k < len(chunks):
-            _, first, count = chunks[k]
-            wp.launch(rk.fill_bins, dim=_launch_threads(count), device="cpu",
-                      inputs=[rects, first, first + count, k, tiles_x, cursors, binned["bins"]])
+            _, first, _ = chunks[k]
+            count = int(binned["count"][k])
+            if count:
+                wp.launch(rk.fill_bins, dim=_launch_threads(count), device="cpu",
+                          inputs=[binned_rect, first, first + count, k, tiles_x, cursors, binned["bins"]])
 
     def binning_done():
         binned["clock"] = time.perf_counter()
@@ -252,7 +283,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     def rasterize(k):
         # every thread takes tiles from the shared queue until none are left
         wp.launch(rk.rasterize_tiles, dim=tiles, device="cpu",
-                  inputs=[positions, indices, screen, inv_depth, rects, bin_start, binned["bins"], samples, spp, cam,
+                  inputs=[positions, indices, screen, depth_weights, binned_face, binned_rect, bin_start, binned["bins"], samples, spp, cam,
                           proj, tiles_x, queue, out])
 
     run_stages([(project, None), (count_tiles, allocate_bins), (fill_bins, binning_done), (rasterize, None)], threads)

@@ -15,7 +15,7 @@ from .camera import Camera
 from .errors import InputTypeError
 from .features import Features, decide, describe, scene_features
 from .frame import Frame
-from .gpu_scene import upload
+from .gpu_scene import back_face_culling, upload
 from .ibl import IBL, ibl_for_quality
 from .parallel import run, thread_count
 from .raster import reused_buffer, visibility_buffer
@@ -167,8 +167,9 @@ def render(
             else no_shadow_maps())
     env, dfg = _environment_arguments(scene, threads) if features.environment else _no_environment()
     if features.visibility == "raster":
+        cull, _ = back_face_culling(scene, gpu, camera.eye)
         vbuffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, spp, grid_m, grid_n, seed, threads,
-                                    out=reused_buffer("camera", height, width * spp))
+                                    out=reused_buffer("camera", height, width * spp), cull_back_faces=cull)
     else:
         vbuffer = wp.empty((1, 1), dtype=wp.uint64, device="cpu")
 

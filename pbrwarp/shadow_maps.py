@@ -17,10 +17,9 @@ from .raster import decode, reused_buffer, visibility_buffer
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.shadow_map import ShadowMaps, ShadowView
 
-# A directional light's map is seen by a pinhole camera this many scene radii away: its rays are
-# parallel to within 1/DISTANT_LIGHT_RADII radians, and float32 depths there still resolve
-# 1e-4 radii.
-DISTANT_LIGHT_RADII = 1000.0
+# A directional light's map is a parallel projection from a plane this many scene radii behind
+# the scene's centre, so that every triangle lies in front of it.
+DIRECTIONAL_VIEW_DISTANCE_RADII = 2.0
 # Spot lights whose cone fits a view this wide get one map; wider ones get a cube of six.
 MAX_SPOT_VIEW_HALF_ANGLE = math.radians(60.0)
 CUBE_DIRECTIONS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
@@ -66,36 +65,37 @@ def _frame(forward) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return f, right, np.cross(right, f)
 
 
-def _view(eye, forward, tan_half: float, resolution: int) -> tuple[CameraData, ShadowView]:
+def _view(eye, forward, half_extent: float, resolution: int, orthographic: bool = False):
+    """(CameraData, ShadowView) of a square view along ``forward``: half_extent is tan(fov/2) for
+    a pinhole view, the half-width in world units for a parallel one."""
     f, right, up = _frame(forward)
     cam = CameraData()
     cam.eye = wp.vec3(*eye)
     cam.forward = wp.vec3(*f)
-    cam.right = wp.vec3(*(right * tan_half))
-    cam.up = wp.vec3(*(up * tan_half))
+    cam.right = wp.vec3(*(right * half_extent))
+    cam.up = wp.vec3(*(up * half_extent))
     cam.width = cam.height = resolution
     view = ShadowView()
     view.eye = cam.eye
-    view.to_camera = wp.mat33(*np.linalg.inv(np.column_stack([right * tan_half, up * tan_half, f])).reshape(-1))
+    view.to_camera = wp.mat33(*np.linalg.inv(np.column_stack([right * half_extent, up * half_extent, f])).reshape(-1))
     view.resolution = resolution
-    view.texel_per_depth = 2.0 * tan_half / resolution
+    view.orthographic = int(orthographic)
+    view.texel_size = 2.0 * half_extent / resolution
     return cam, view
 
 
 def _light_views(light, center, radius: float, settings: ShadowMap):
     """The (CameraData, ShadowView) pairs of one light's maps."""
     res = settings.resolution
+    # a texel of margin per PCF tap, so that filtering at the edge of a view stays inside the map
+    margin = 1.0 + 2.0 * settings.pcf / res
     if light.kind == DIRECTIONAL:
-        distance = DISTANT_LIGHT_RADII * radius
-        eye = center - np.asarray(light.direction) * distance
-        return [_view(eye, light.direction, radius / math.sqrt(distance**2 - radius**2), res)]
+        eye = center - np.asarray(light.direction) * (DIRECTIONAL_VIEW_DISTANCE_RADII * radius)
+        return [_view(eye, light.direction, radius * margin, res, orthographic=True)]
     position = np.asarray(light.position, dtype=np.float64)
     if light.kind == SPOT and light.outer_cone <= MAX_SPOT_VIEW_HALF_ANGLE:
-        # a texel of margin per PCF tap, so filtering at the cone's edge stays inside the map
-        tan_half = math.tan(light.outer_cone) * (1.0 + 2.0 * settings.pcf / res)
-        return [_view(position, light.direction, tan_half, res)]
-    tan_half = 1.0 + 2.0 * settings.pcf / res
-    return [_view(position, d, tan_half, res) for d in CUBE_DIRECTIONS]
+        return [_view(position, light.direction, math.tan(light.outer_cone) * margin, res)]
+    return [_view(position, d, margin, res) for d in CUBE_DIRECTIONS]
 
 
 def _light_geometry(light) -> tuple:
@@ -122,7 +122,8 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
         spans.append((len(views), len(pairs)))
         for cam, view in pairs:
             buffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads,
-                                       out=reused_buffer("shadow map", cam.height, cam.width))
+                                       out=reused_buffer("shadow map", cam.height, cam.width),
+                                       orthographic=bool(view.orthographic))
             depths.append(decode(buffer)[1])
             views.append(view)
     maps = ShadowMaps()

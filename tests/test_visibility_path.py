@@ -81,3 +81,41 @@ def test_visibility_is_a_compile_time_choice_and_explained():
         pw.render(scene, width=8, height=8, visibility="zbuffer")
     # auto does not hold a visibility buffer beyond 1 GiB (16 bytes a sample)
     assert "would take 2,025 MiB" in pw.explain(scene, width=3840, height=2160, spp=16)
+
+
+def test_back_faces_are_culled_only_where_no_camera_ray_shows_them():
+    from pbrwarp.gpu_scene import back_face_culling
+
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    plane = trimesh.Trimesh([[-1, 0, -1], [1, 0, -1], [1, 0, 1]], [[0, 2, 1]])
+    cases = [
+        # (mesh, material, eye, culled)
+        (sphere, pw.Material(double_sided=False), (0.0, 0.0, 0.0), True),  # single-sided: never shaded
+        (sphere, pw.Material(), (0.0, 0.0, 3.0), True),  # closed, seen from outside
+        (sphere, pw.Material(), (0.0, 0.0, 0.5), False),  # inside: only back faces show
+        (sphere, pw.Material(alpha_mode="MASK"), (0.0, 0.0, 3.0), False),  # seen through cut-outs
+        (plane, pw.Material(), (0.0, 2.0, 0.0), False),  # open and double-sided
+        (sphere.copy().invert(), pw.Material(), (0.0, 0.0, 3.0), False),  # faces turned inwards
+    ]
+    for mesh, material, eye, culled in cases:
+        scene = pw.Scene()
+        scene.add_mesh(mesh, material)
+        flags, meshes_culled = back_face_culling(scene, upload(scene), eye)
+        assert meshes_culled == int(culled)
+        if culled:
+            assert flags.numpy().all() and len(flags) == len(mesh.faces)
+        else:
+            assert flags is None
+
+
+def test_culled_back_faces_render_as_rays_see_them():
+    """A single-sided sphere inside a closed double-sided one, both culled from outside, and the
+    camera moved inside the outer one, where its back faces must be drawn again."""
+    scene = pw.Scene()
+    scene.add_mesh(trimesh.creation.icosphere(subdivisions=3, radius=0.5), pw.Material(double_sided=False))
+    scene.add_mesh(trimesh.creation.icosphere(subdivisions=3, radius=3.0), pw.Material(base_color=(0.3, 0.6, 0.9)))
+    scene.add_light(pw.PointLight(position=(1.0, 1.0, 1.0), intensity=20.0))
+    for eye in ((0.0, 0.5, 6.0), (0.0, 0.5, 2.0)):
+        cam = pw.Camera.look_at(eye=eye, target=(0.0, 0.0, 0.0), fov_y=60.0)
+        raster, _ = assert_same_image_where_the_paths_agree(scene, cam, (64, 48), 1)
+        assert raster.alpha.mean() > 0.1
