@@ -9,8 +9,11 @@ Samples per second (one per pixel, every pixel counted, hit or not) of
   renderer launches them (pbrwarp.render.bands, LAUNCHES_PER_THREAD per thread);
 - Open3D's RaycastingScene.cast_rays (Embree, all cores) on the same rays, precomputed,
   when open3d is installed.
-Meshes: an icosphere and the Stanford bunny at 512², 1024², 2048²; icospheres of 20k to 1.3M
-triangles, Suzanne subdivided to 15k and the happy Buddha to 1.6M triangles at 1024². Also the
+The raster also with every back face culled, as pw.render draws single-sided meshes (glTF's
+default) and closed ones seen from outside: for the closed icospheres the buffer names the same
+triangles. Meshes: an icosphere and the Stanford bunny at 512², 1024², 2048²; icospheres of 20k
+to 1.3M triangles, Suzanne subdivided to 15k, the happy Buddha to 1.6M triangles and a 2M-triangle
+terrain (a 1000 x 1000 height field seen at a slant) at 1024². Also the
 raster's time split (binning vs rasterization) and least-squares cost models, time = a triangles
 + b samples for the raster and c samples log2(triangles) for the ray cast, whose constants
 pbrwarp/raster.py keeps. Medians of --repeats runs after a warm-up.
@@ -91,20 +94,24 @@ def bench_case(label, mesh, size, repeats, threads_all):
 
     buffer = wp.empty((size, size), dtype=wp.uint64, device="cpu")
 
-    def raster(threads, out=buffer, timings=None):
-        return visibility_buffer(geometry.positions, geometry.indices, cam, threads=threads, out=out, timings=timings)
+    every_face = wp.ones(triangles, dtype=wp.uint8, device="cpu")
+
+    def raster(threads, out=buffer, timings=None, cull=None):
+        return visibility_buffer(geometry.positions, geometry.indices, cam, threads=threads, out=out, timings=timings,
+                                 cull_back_faces=cull)
 
     # 1 and all threads, reused and new buffer, in turn, so that a burst of load on this shared
     # machine slows every variant alike rather than one of them (their ratios matter)
-    variants = {f"raster_ms_{threads}t": (threads, buffer) for threads in sorted({1, threads_all})}
-    variants[f"raster_new_buffer_ms_{threads_all}t"] = (threads_all, None)
+    variants = {f"raster_ms_{threads}t": (threads, buffer, None) for threads in sorted({1, threads_all})}
+    variants[f"raster_new_buffer_ms_{threads_all}t"] = (threads_all, None, None)
+    variants[f"raster_culled_ms_{threads_all}t"] = (threads_all, buffer, every_face)
     times = {key: [] for key in variants}
     splits = []
     for repeat in range(repeats + 1):  # the first round warms up
-        for key, (threads, out) in variants.items():
+        for key, (threads, out, cull) in variants.items():
             split = {}
             t0 = time.perf_counter()
-            raster(threads, out, split)
+            raster(threads, out, split, cull)
             if repeat:
                 times[key].append(time.perf_counter() - t0)
                 if key == f"raster_ms_{threads_all}t":
@@ -120,6 +127,7 @@ def bench_case(label, mesh, size, repeats, threads_all):
     ids, _ = decode(raster(threads_all))
     row["coverage"] = float((ids >= 0).mean())
     row["same_triangle"] = float((ids == faces.numpy()).mean())
+    row["culled_same_triangle"] = float((decode(raster(threads_all, cull=every_face))[0] == ids).mean())
 
     o3d = open3d_scene(mesh)
     if o3d is not None:
@@ -136,6 +144,7 @@ def bench_case(label, mesh, size, repeats, threads_all):
             row[key.replace("_ms", "_msamples_per_s")] = samples / row[key] / 1e3
     if "embree_ms" in row:
         row["raster_to_embree"] = row["embree_ms"] / row[f"raster_ms_{threads_all}t"]
+        row["culled_raster_to_embree"] = row["embree_ms"] / row[f"raster_culled_ms_{threads_all}t"]
     row["raster_speedup"] = row["raster_ms_1t"] / row[f"raster_ms_{threads_all}t"]
     return row
 
@@ -161,28 +170,35 @@ def markdown(rows, model, threads_all):
     t = threads_all
     lines = [
         f"| mesh | triangles | size | raster ms 1t / {t}t | speedup | {t}t with a new buffer | binning / rasterization ms {t}t | "
-        f"ray cast ms {t}t | Embree ms | raster / ray cast / Embree Msamples/s | raster ÷ Embree | "
-        f"model raster / ray cast ms | coverage | same triangle |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        f"back faces culled ms {t}t | ray cast ms {t}t | Embree ms | raster / ray cast / Embree Msamples/s | "
+        f"raster ÷ Embree (culled) | model raster / ray cast ms | coverage | same triangle (culled) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         embree_ms = f"{r['embree_ms']:.1f}" if "embree_ms" in r else "n/a"
         embree_rate = f"{r['embree_msamples_per_s']:.1f}" if "embree_ms" in r else "n/a"
-        ratio = f"{r['raster_to_embree']:.2f}x" if "raster_to_embree" in r else "n/a"
+        ratio = (f"{r['raster_to_embree']:.2f}x ({r['culled_raster_to_embree']:.2f}x)" if "raster_to_embree" in r
+                 else "n/a")
         lines.append(
             f"| {r['mesh']} | {r['triangles']:,} | {r['size']}² | {r['raster_ms_1t']:.1f} / {r[f'raster_ms_{t}t']:.1f} | "
             f"{r['raster_speedup']:.2f}x | {r[f'raster_new_buffer_ms_{t}t']:.1f} | {r['binning_ms']:.1f} / {r['rasterization_ms']:.1f} | "
-            f"{r[f'raycast_ms_{t}t']:.1f} | {embree_ms} | "
+            f"{r[f'raster_culled_ms_{t}t']:.1f} | {r[f'raycast_ms_{t}t']:.1f} | {embree_ms} | "
             f"{r[f'raster_msamples_per_s_{t}t']:.1f} / {r[f'raycast_msamples_per_s_{t}t']:.1f} / {embree_rate} | {ratio} | "
-            f"{r['raster_model_ms']:.1f} / {r['raycast_model_ms']:.1f} | {r['coverage']:.3f} | {r['same_triangle']:.5f} |")
+            f"{r['raster_model_ms']:.1f} / {r['raycast_model_ms']:.1f} | {r['coverage']:.3f} | "
+            f"{r['same_triangle']:.5f} ({r['culled_same_triangle']:.5f}) |")
     lines += [
         "",
         "Samples are pixels (spp 1), all counted, hit or not. Raster: whole visibility_buffer call (binning = "
-        "vertex projection, triangle rectangles, bins; rasterization = tile clears and triangles), sample "
+        "buffer clear, vertex projection, small triangles drawn at once, the others' rectangles binned; "
+        "rasterization = the binned triangles, tile by tile), sample "
         "positions cached, output buffer reused (out=) except in the new-buffer column, whose fresh pages "
-        "page-fault; the three raster variants are timed in turn, round after round. Ray cast: wp.mesh_query_ray per pixel in row bands on the thread pool. Embree: "
+        "page-fault; the four raster variants are timed in turn, round after round. Back faces culled: every "
+        "triangle flagged in cull_back_faces, as pw.render flags single-sided meshes and closed ones seen from "
+        "outside (the icospheres are closed; the others stand for single-sided meshes). Ray cast: "
+        "wp.mesh_query_ray per pixel in row bands on the thread pool. Embree: "
         "Open3D RaycastingScene.cast_rays on all cores, rays precomputed. Same triangle: fraction of pixels "
-        "where raster and ray cast name the same triangle (or both none).",
+        "where raster and ray cast name the same triangle (or both none); in brackets, where the culled "
+        "raster names the same triangle as the full one.",
         "",
         f"Cost models on {t} threads, least squares weighted by 1/time over all rows (pbrwarp/raster.py keeps them):",
         f"- raster (reused buffer) ≈ {model['raster_seconds_per_triangle'] * 1e9:.1f} ns × triangles + "
@@ -204,6 +220,22 @@ def subdivided(name, times):
     return mesh
 
 
+def terrain(cells=1000, seed=3):
+    """A cells x cells height field of rolling hills, 2 cells² triangles, about 1 unit across."""
+    import trimesh
+
+    rng = np.random.default_rng(seed)
+    x, z = np.meshgrid(np.linspace(-0.5, 0.5, cells + 1), np.linspace(-0.5, 0.5, cells + 1))
+    y = np.zeros_like(x)
+    for _ in range(12):
+        k = rng.normal(size=2) * 12.0
+        y += 0.01 * np.sin(k[0] * x + k[1] * z + rng.uniform(0, 2 * np.pi))
+    corner = (np.arange(cells)[:, None] * (cells + 1) + np.arange(cells)[None, :]).ravel()
+    quads = np.stack([corner, corner + cells + 1, corner + cells + 2, corner + 1], axis=1)
+    faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    return trimesh.Trimesh(np.stack([x, y, z], axis=-1).reshape(-1, 3), faces, process=False)
+
+
 def cases(quick):
     if quick:
         return [("icosphere", icosphere(4), 128)]
@@ -217,6 +249,7 @@ def cases(quick):
         out.append(("icosphere", icosphere(subdivisions), 1024))
     out.append(("suzanne", subdivided("suzanne", 2), 1024))
     out.append(("happy buddha", subdivided("happy-buddha", 2), 1024))
+    out.append(("terrain", terrain(), 1024))
     return out
 
 
