@@ -54,6 +54,9 @@ ITEMS_PER_THREAD = wp.constant(64)
 # +-2^29, so int32 holds them and these codes below them.
 BEHIND_CAMERA = wp.constant(-2147483648)
 OUTSIDE_GUARD_BAND = wp.constant(-2147483647)
+# Relative size of c0 . (c1 x c2), for camera-space triangle vertices, below which the eye counts as
+# lying in the triangle's plane: far above the float64 rounding of camera coordinates (1e-16).
+EYE_IN_PLANE_TOLERANCE = wp.constant(wp.float64(1.0e-9))
 # Relative size below which a direction component may have the wrong sign after rounding.
 DIRECTION_TOLERANCE = wp.constant(wp.float64(1.0e-12))
 
@@ -535,8 +538,9 @@ def rasterize_triangle(face: int, q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: 
 def trace_triangle(face: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, rect: wp.vec4i,
                    samples: wp.array2d(dtype=wp.vec2), spp: int, cam: CameraData, proj: Projection,
                    out: wp.array2d(dtype=wp.uint64)):
-    """Coverage of the samples of ``rect`` by a triangle that cannot be projected, by casting each
-    sample's camera ray at it; depth is the hit's camera-space z."""
+    """Coverage of the samples of ``rect`` by casting each sample's camera ray at the triangle, for
+    one whose plane holds the eye: rays from an eye inside it hit at t = 0, as the ray caster's do;
+    depth is the hit's camera-space z."""
     depth_row = wp.vec3d(proj.to_camera[2, 0], proj.to_camera[2, 1], proj.to_camera[2, 2])
     for py in range(rect[1], rect[3] + 1):
         for col in range(rect[0] * spp, (rect[2] + 1) * spp):
@@ -546,6 +550,65 @@ def trace_triangle(face: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, rect: wp.ve
             if hit:
                 z = wp.float64(t) * wp.dot(depth_row, wp.vec3d(wp.float64(d[0]), wp.float64(d[1]), wp.float64(d[2])))
                 keep_nearest(out, py, col, visibility_entry(float(z), face), False)
+
+
+@wp.func
+def owns_boundary_float(a: wp.float64, b: wp.float64) -> bool:
+    """owns_boundary for an edge function with float64 coefficients."""
+    return a > wp.float64(0.0) or (a == wp.float64(0.0) and b > wp.float64(0.0))
+
+
+@wp.func
+def homogeneous_edge(n: wp.vec3d, proj: Projection) -> wp.vec3d:
+    """(A, B, C) of the edge function A x + B y + C in pixels of the plane through the eye with
+    normal n (camera coordinates): n . (a/z, b/z, 1) with a/z = x / half_width - 1, b/z = 1 - y / half_height."""
+    return wp.vec3d(n[0] / proj.half_width, -n[1] / proj.half_height, n[2] - n[0] + n[1])
+
+
+@wp.func
+def rasterize_homogeneous(face: int, c0: wp.vec3d, c1: wp.vec3d, c2: wp.vec3d, rect: wp.vec4i,
+                          samples: wp.array2d(dtype=wp.vec2), spp: int, proj: Projection,
+                          out: wp.array2d(dtype=wp.uint64)) -> bool:
+    """Coverage of the samples of ``rect`` by a triangle that cannot be projected (it reaches
+    behind the camera or beyond the guard band), from its camera-space vertices, without clipping
+    (homogeneous rasterization, Olano and Greer 1997): a sample's ray (a/z, b/z, 1) crosses the
+    triangle where it lies on the inner side of the three planes through the eye and an edge,
+    n_i = c_j x c_k, and then at depth z = det / sum_i n_i . ray, det = c0 . (c1 x c2), the
+    plane's distance term. Each edge function is evaluated directly in float64, so a neighbour
+    sharing the edge, whose normal is exactly the negation, takes the opposite decision and the
+    ownership rule settles samples exactly on it. Returns False, drawing nothing, for a triangle
+    whose plane holds the eye (see trace_triangle)."""
+    n0 = wp.cross(c1, c2)
+    n1 = wp.cross(c2, c0)
+    n2 = wp.cross(c0, c1)
+    det = wp.dot(c0, n0)
+    # the eye in the triangle's plane, to within the rounding of the camera coordinates
+    if wp.abs(det) <= EYE_IN_PLANE_TOLERANCE * wp.length(c0) * wp.length(c1) * wp.length(c2):
+        return False
+    if det < wp.float64(0.0):
+        n0 = -n0
+        n1 = -n1
+        n2 = -n2
+        det = -det
+    e0 = homogeneous_edge(n0, proj)
+    e1 = homogeneous_edge(n1, proj)
+    e2 = homogeneous_edge(n2, proj)
+    own0 = owns_boundary_float(e0[0], e0[1])
+    own1 = owns_boundary_float(e1[0], e1[1])
+    own2 = owns_boundary_float(e2[0], e2[1])
+    zero = wp.float64(0.0)
+    for py in range(rect[1], rect[3] + 1):
+        for col in range(rect[0] * spp, (rect[2] + 1) * spp):
+            p = samples[py, col]
+            x = wp.float64(p[0])
+            y = wp.float64(p[1])
+            f0 = e0[0] * x + e0[1] * y + e0[2]
+            f1 = e1[0] * x + e1[1] * y + e1[2]
+            f2 = e2[0] * x + e2[1] * y + e2[2]
+            if ((f0 > zero or (f0 == zero and own0)) and (f1 > zero or (f1 == zero and own1))
+                    and (f2 > zero or (f2 == zero and own2))):
+                keep_nearest(out, py, col, visibility_entry(float(det / (f0 + f1 + f2)), face), False)
+    return True
 
 
 # ---------------------------------------------------------------------- binning
@@ -713,4 +776,9 @@ def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=
             rasterize_triangle(face, q0, q1, q2, depth_weights[c[0]], depth_weights[c[1]], depth_weights[c[2]], rect, samples, spp,
                                proj.orthographic, out, False)
         else:
-            trace_triangle(face, positions[c[0]], positions[c[1]], positions[c[2]], rect, samples, spp, cam, proj, out)
+            p0 = positions[c[0]]
+            p1 = positions[c[1]]
+            p2 = positions[c[2]]
+            if not rasterize_homogeneous(face, camera_coordinates(proj, p0), camera_coordinates(proj, p1),
+                                         camera_coordinates(proj, p2), rect, samples, spp, proj, out):
+                trace_triangle(face, p0, p1, p2, rect, samples, spp, cam, proj, out)
