@@ -446,7 +446,8 @@ def interpolated_depth(weights: wp.float64, double_area: wp.float64, orthographi
 @wp.func
 def rasterize_triangle(face: int, q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: wp.float64, w1: wp.float64,
                        w2: wp.float64, rect: wp.vec4i,
-                       samples: wp.array2d(dtype=wp.vec2), spp: int, orthographic: int, out: wp.array2d(dtype=wp.uint64),
+                       samples: wp.array2d(dtype=wp.vec2), spp: int, orthographic: int,
+                       out: wp.array2d(dtype=wp.uint64),
                        shared: bool):
     """Edge-function coverage of the samples of ``rect`` by a projected triangle, exact in int64;
     depth from the vertices' depth weights w (project_vertex) interpolated linearly in screen
@@ -530,8 +531,8 @@ def rasterize_triangle(face: int, q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: 
             e2 = a2 * sx + b2 * sy + c2
             if (e0 | e1 | e2) >= wp.int64(0):
                 weights = w_bias + w0 * wp.float64(e0) + w1 * wp.float64(e1) + w2 * wp.float64(e2)
-                keep_nearest(out, py, col, visibility_entry(interpolated_depth(weights, double_area, orthographic), face),
-                             shared)
+                depth = interpolated_depth(weights, double_area, orthographic)
+                keep_nearest(out, py, col, visibility_entry(depth, face), shared)
 
 
 @wp.func
@@ -663,8 +664,8 @@ def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=w
             if spp == 1 and rect_pixels(r) == 1:
                 if not covers_pixel_centre(q0, q1, q2, r[0], r[1]):
                     return
-            rasterize_triangle(face, q0, q1, q2, depth_weights[c[0]], depth_weights[c[1]], depth_weights[c[2]], r, samples, spp,
-                               proj.orthographic, out, True)
+            rasterize_triangle(face, q0, q1, q2, depth_weights[c[0]], depth_weights[c[1]], depth_weights[c[2]], r,
+                               samples, spp, proj.orthographic, out, True)
             return
     else:
         if proj.orthographic != 0:
@@ -703,8 +704,9 @@ def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.i
     [first, end), ITEMS_PER_THREAD per thread."""
     start = first + wp.tid() * ITEMS_PER_THREAD
     for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
-        count_triangle(positions, indices, vertex_count, screen, depth_weights, proj, samples, spp, face, chunk, tiles_x,
-                       cull_back_faces, first, binned_count, binned_face, binned_rect, tile_counts, bad_indices, out)
+        count_triangle(positions, indices, vertex_count, screen, depth_weights, proj, samples, spp, face, chunk,
+                       tiles_x, cull_back_faces, first, binned_count, binned_face, binned_rect, tile_counts,
+                       bad_indices, out)
 
 
 @wp.kernel
@@ -773,8 +775,8 @@ def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=
         q1 = screen[c[1]]
         q2 = screen[c[2]]
         if is_projected(q0) and is_projected(q1) and is_projected(q2):
-            rasterize_triangle(face, q0, q1, q2, depth_weights[c[0]], depth_weights[c[1]], depth_weights[c[2]], rect, samples, spp,
-                               proj.orthographic, out, False)
+            rasterize_triangle(face, q0, q1, q2, depth_weights[c[0]], depth_weights[c[1]], depth_weights[c[2]], rect,
+                               samples, spp, proj.orthographic, out, False)
         else:
             p0 = positions[c[0]]
             p1 = positions[c[1]]

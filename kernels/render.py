@@ -12,7 +12,8 @@ from .ambient import ambient_for
 from .brdf import brdf_for
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
-from .lights import light_sampler
+from .light_buffer import LightBuffers, UNDECIDED, OCCLUDED, light_buffer_occlusion
+from .lights import LightSample, light_sampler
 from .normal_mapping import perturb_normal
 from .raster import ray_triangle_intersection, triangle_corners, visible_triangle
 from .robust import (
@@ -120,7 +121,7 @@ def render_kernel(features):
         return False
 
     @wp.func
-    def shade(scene: SceneData, maps: ShadowMaps, env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit,
+    def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit,
               mat: MaterialData, uv: wp.vec2, view: wp.vec3, n: wp.vec3, seed: int, stream: int) -> wp.vec3:
         radiance = wp.vec3(0.0)
         if wp.static(f.emission):
@@ -150,13 +151,12 @@ def render_kernel(features):
                 n_dot_l = wp.dot(n, ls.to_light)
                 if n_dot_l <= 0.0:
                     continue
+                if wp.static(f.spot_lights):
+                    if ls.irradiance == wp.vec3(0.0):
+                        continue  # outside a spot's cone: no shadow ray
                 unshadowed = float(1.0)
                 if wp.static(f.shadows == "rays"):
-                    origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
-                    max_t = RAY_FAR
-                    if ls.distance < RAY_FAR:
-                        max_t = wp.length(scene.lights[i].position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
-                    if wp.mesh_query_ray_anyhit(scene.mesh, origin, ls.to_light, max_t):
+                    if shadow_ray_occluded(scene, buffers, i, h, ls):
                         continue
                 if wp.static(f.shadows == "map"):
                     unshadowed = shadow_map_visibility(maps, i, scene.lights[i].position, h.p, h.ng)
@@ -173,6 +173,26 @@ def render_kernel(features):
                         from_environment = from_environment * (1.0 + mat.occlusion_strength * (occlusion - 1.0))
                 radiance = radiance + from_environment
         return radiance
+
+    @wp.func
+    def shadow_ray_occluded(scene: SceneData, buffers: LightBuffers, light: int, h: SurfaceHit, ls: LightSample) -> bool:
+        """Whether a surface blocks the segment from the hit to light ``light``: aimed from the
+        offset origin at the light's position, so that the light buffer's cell holds it, or along
+        a directional light; the BVH answers where the light buffer cannot."""
+        origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
+        direction = ls.to_light
+        max_t = RAY_FAR
+        position = scene.lights[light].position
+        if ls.distance < RAY_FAR:
+            to_light = position - origin
+            distance = wp.length(to_light)
+            direction = safe_normalize(to_light, ls.to_light)
+            max_t = distance * (1.0 - SHADOW_RAY_SHORTENING)
+        verdict = light_buffer_occlusion(buffers, light, position, scene.positions, scene.indices, origin, direction,
+                                         max_t)
+        if verdict == UNDECIDED:
+            return wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t)
+        return verdict == OCCLUDED
 
     @wp.func
     def shading_normal(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
@@ -230,6 +250,7 @@ def render_kernel(features):
         out_normal: wp.array2d(dtype=wp.vec3),
         vbuffer: wp.array2d(dtype=wp.uint64),
         maps: ShadowMaps,
+        buffers: LightBuffers,
         env: EnvironmentData,
         dfg: wp.array2d(dtype=wp.vec2),
     ):
@@ -268,7 +289,7 @@ def render_kernel(features):
                 n = wp.vec3(0.0)
                 if wp.static(shaded or f.aovs):
                     n = shading_normal(scene, h, mat, uv)
-                radiance = radiance + shade(scene, maps, env, dfg, h, mat, uv, -d, n, pixel_seed, s)
+                radiance = radiance + shade(scene, maps, buffers, env, dfg, h, mat, uv, -d, n, pixel_seed, s)
                 hits = hits + 1
                 if wp.static(f.aovs):
                     normal_sum = normal_sum + n

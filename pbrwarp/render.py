@@ -19,6 +19,7 @@ from .gpu_scene import back_face_culling, upload
 from .ibl import IBL, ibl_for_quality
 from .parallel import run, thread_count
 from .raster import reused_buffer, visibility_buffer
+from .light_buffers import build as build_light_buffers, no_light_buffers
 from .shadow_maps import build as build_shadow_maps, no_shadow_maps, shadow_mode
 from .scene import Scene
 from pbrwarp.kernels.camera import CameraData
@@ -165,6 +166,7 @@ def render(
     seed = int(seed) % (2**31)
     maps = (build_shadow_maps(scene, gpu, shadow_mode(shadows)[1], threads) if features.shadows == "map"
             else no_shadow_maps())
+    buffers = build_light_buffers(scene, gpu, threads) if features.shadows == "rays" else no_light_buffers()
     env, dfg = _environment_arguments(scene, threads) if features.environment else _no_environment()
     if features.visibility == "raster":
         cull, _ = back_face_culling(scene, gpu, camera.eye)
@@ -177,7 +179,7 @@ def render(
         x0, y0, tile_width, tile_height = band
         wp.launch(kernel, dim=tile_width * tile_height, device="cpu",
                   inputs=[gpu.data, cam, spp, grid_m, grid_n, seed, x0, y0, tile_width, bg,
-                          out_rgb, out_alpha, out_depth, out_normal, vbuffer, maps, env, dfg])
+                          out_rgb, out_alpha, out_depth, out_normal, vbuffer, maps, buffers, env, dfg])
 
     workers = thread_count(threads)
     work = bands(width, height, LAUNCHES_PER_THREAD * workers)

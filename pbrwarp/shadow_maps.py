@@ -84,11 +84,13 @@ def _view(eye, forward, half_extent: float, resolution: int, orthographic: bool 
     return cam, view
 
 
-def _light_views(light, center, radius: float, settings: ShadowMap):
-    """The (CameraData, ShadowView) pairs of one light's maps."""
-    res = settings.resolution
-    # a texel of margin per PCF tap, so that filtering at the edge of a view stays inside the map
-    margin = 1.0 + 2.0 * settings.pcf / res
+def light_views(light, center, radius: float, res: int, margin_texels: int):
+    """The (CameraData, ShadowView) pairs of the views of one light (shadow maps, light buffers):
+    a cube of six for point lights and spot lights wider than MAX_SPOT_VIEW_HALF_ANGLE, one
+    pinhole view for narrower spots, a parallel view behind the scene (centre, radius) for
+    directional lights; ``res`` texels a side, of which ``margin_texels`` on each lie beyond the
+    light's reach (the cube's faces, the spot's cone, the scene)."""
+    margin = 1.0 + 2.0 * margin_texels / res
     if light.kind == DIRECTIONAL:
         eye = center - np.asarray(light.direction) * (DIRECTIONAL_VIEW_DISTANCE_RADII * radius)
         return [_view(eye, light.direction, radius * margin, res, orthographic=True)]
@@ -98,7 +100,7 @@ def _light_views(light, center, radius: float, settings: ShadowMap):
     return [_view(position, d, margin, res) for d in CUBE_DIRECTIONS]
 
 
-def _light_geometry(light) -> tuple:
+def light_geometry(light) -> tuple:
     """What a light's maps depend on (not its colour or intensity)."""
     return (light.kind, tuple(getattr(light, "position", ())), tuple(getattr(light, "direction", ())),
             getattr(light, "outer_cone", None))
@@ -109,7 +111,7 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
 
     Kept on the scene and reused while its geometry, the lights' placement and the settings stay
     the same: moving the camera or changing colours and intensities renders no new maps."""
-    key = (tuple(_light_geometry(light) for light in scene.lights), settings)
+    key = (tuple(light_geometry(light) for light in scene.lights), settings)
     cached = scene.__dict__.get("_shadow_maps")
     if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
         return cached[2]
@@ -118,7 +120,8 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
     depths, views, spans = [], [], []
     for light in scene.lights:
-        pairs = _light_views(light, center, radius, settings)
+        # a texel of margin per PCF tap, so that filtering at the edge of a view stays inside the map
+        pairs = light_views(light, center, radius, settings.resolution, settings.pcf)
         spans.append((len(views), len(pairs)))
         for cam, view in pairs:
             buffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads,

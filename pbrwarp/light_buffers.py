@@ -1,0 +1,139 @@
+"""Light buffers, the shadow rays' acceleration structure (kernels/light_buffer.py): per light, the
+triangles seen through each cell of a grid of directions, nearest first. Built on every core from
+the same views as the shadow maps and kept on the scene while its geometry and the lights'
+placement stay the same; a shadow ray tests a handful of triangles instead of walking the BVH."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import warp as wp
+
+from .errors import InputError
+from .parallel import run, thread_count
+from .raster import projection
+from .shadow_maps import light_views, light_geometry
+from pbrwarp.kernels import light_buffer as lb
+from pbrwarp.kernels.loading import load_for_cpu
+
+# Cells per side of each view: 512 keeps the lists of an 80k-triangle sphere in a 90-degree cube
+# face at a few triangles (bench/frames.py).
+RESOLUTION = 512
+# Light buffers are not built for a light closer than this fraction of the scene's radius to a
+# triangle: its shadow rays would span many cells near the light; they walk the BVH instead.
+MIN_CLEARANCE_RADII = 1.0e-4
+# Budget of a light's list entries: this many per triangle plus this many per cell of its views.
+MAX_ENTRIES_PER_TRIANGLE = 16
+MAX_ENTRIES_PER_CELL = 8
+# Fraction taken off the float32 distance from a light to the nearest surface.
+CLEARANCE_MARGIN = 1.0e-3
+
+
+def _launch_threads(items: int) -> int:
+    return -(-items // int(lb.ITEMS_PER_THREAD))
+
+
+def _parallel(fn, jobs, threads):
+    for _ in run(fn, jobs, threads):
+        pass
+
+
+def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
+    """The light buffers of every light of ``scene`` (uploaded as ``gpu``), cached on the scene."""
+    key = tuple(light_geometry(light) for light in scene.lights)
+    cached = scene.__dict__.get("_light_buffers")
+    if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
+        return cached[2]
+    threads = thread_count(threads)
+    for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.sort_cells):
+        load_for_cpu(kernel)
+    positions, indices = gpu.data.positions, gpu.data.indices
+    triangles = len(indices) // 3
+    lo, hi = scene.bounds()
+    center = (lo + hi) / 2.0
+    radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
+    clearances = _clearances(gpu, scene.lights)
+    views, spans = [], []
+    for light, clearance in zip(scene.lights, clearances):
+        if clearance < MIN_CLEARANCE_RADII * radius:
+            spans.append((0, 0))
+            continue
+        try:
+            light_projections = [projection(cam, orthographic=bool(view.orthographic))
+                                 for cam, view in light_views(light, center, radius, RESOLUTION, 1)]
+        except InputError:  # a scene so large that its views overflow: the BVH handles it
+            spans.append((0, 0))
+            continue
+        spans.append((len(views), len(light_projections)))
+        views += light_projections
+    cells = RESOLUTION * RESOLUTION
+    counts = wp.zeros(max(len(views), 1) * cells, dtype=wp.int32, device="cpu")
+
+    def count(v):
+        wp.launch(lb.count_cells, dim=_launch_threads(triangles), device="cpu",
+                  inputs=[positions, indices, views[v], v * cells, triangles, counts])
+
+    _parallel(count, range(len(views)), threads)
+    per_cell = counts.numpy().reshape(-1, cells)
+    kept = []
+    for k, (first, n) in enumerate(spans):
+        # a light whose lists would outgrow the budget (huge or degenerate geometry seen edge-on)
+        # leaves its shadow rays to the BVH
+        budget = MAX_ENTRIES_PER_TRIANGLE * triangles + MAX_ENTRIES_PER_CELL * n * cells
+        if n and per_cell[first:first + n].sum(dtype=np.int64) > budget:
+            per_cell[first:first + n] = 0
+            spans[k] = (0, 0)
+        else:
+            kept += range(first, first + n)
+    start = np.zeros(per_cell.size + 1, np.int64)
+    np.cumsum(per_cell.reshape(-1), out=start[1:])
+    if start[-1] >= 2**31:
+        raise InputError(f"light buffers too large: {start[-1]} cell entries; use shadows='map'")
+    cell_start = wp.array(start.astype(np.int32), dtype=wp.int32, device="cpu")
+    cursors = wp.array(start[:-1].astype(np.int32), dtype=wp.int32, device="cpu")
+    entries = max(int(start[-1]), 1)
+    cell_faces = wp.empty(entries, dtype=wp.int32, device="cpu")
+    cell_near = wp.empty(entries, dtype=float, device="cpu")
+
+    def fill_and_sort(v):
+        wp.launch(lb.fill_cells, dim=_launch_threads(triangles), device="cpu",
+                  inputs=[positions, indices, views[v], v * cells, triangles, cursors, cell_faces, cell_near])
+        wp.launch(lb.sort_cells, dim=cells, device="cpu", inputs=[v * cells, cell_start, cell_faces, cell_near])
+
+    _parallel(fill_and_sort, kept, threads)
+    buffers = lb.LightBuffers()
+    buffers.views = wp.array(views if views else [lb.Projection()], dtype=lb.Projection, device="cpu")
+    buffers.light_views = wp.array(spans if spans else [(0, 0)], dtype=wp.vec2i, device="cpu")
+    buffers.clearance = wp.array([min(c, 3e38) for c in clearances] or [0.0], dtype=float, device="cpu")
+    buffers.cell_start, buffers.cell_faces, buffers.cell_near = cell_start, cell_faces, cell_near
+    buffers.resolution = RESOLUTION
+    scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers)
+    return buffers
+
+
+def _clearances(gpu, lights) -> list[float]:
+    """Per light, a distance within which no triangle lies (of its position; infinite for a
+    directional light): the nearest surface point's distance, less a margin for its rounding."""
+    positional = [light for light in lights if hasattr(light, "position")]
+    distances = iter([])
+    if positional:
+        points = wp.array(np.array([light.position for light in positional], np.float32), dtype=wp.vec3, device="cpu")
+        out = wp.empty(len(positional), dtype=float, device="cpu")
+        wp.launch(lb.nearest_surface_distance, dim=len(positional), inputs=[gpu.data.mesh, points, out], device="cpu")
+        distances = iter(out.numpy().astype(np.float64) * (1.0 - CLEARANCE_MARGIN))
+    return [next(distances) if hasattr(light, "position") else np.inf for light in lights]
+
+
+@functools.cache
+def no_light_buffers() -> lb.LightBuffers:
+    """The render kernel's argument when no shadow rays are traced: every light left to the BVH."""
+    buffers = lb.LightBuffers()
+    buffers.views = wp.array([lb.Projection()], dtype=lb.Projection, device="cpu")
+    buffers.light_views = wp.array([(0, 0)], dtype=wp.vec2i, device="cpu")
+    buffers.clearance = wp.zeros(1, dtype=float, device="cpu")
+    buffers.cell_start = wp.zeros(2, dtype=wp.int32, device="cpu")
+    buffers.cell_faces = wp.zeros(1, dtype=wp.int32, device="cpu")
+    buffers.cell_near = wp.zeros(1, dtype=float, device="cpu")
+    buffers.resolution = 1
+    return buffers

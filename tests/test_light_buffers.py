@@ -1,0 +1,142 @@
+"""Light buffers (pbrwarp/light_buffers.py), the shadow rays' acceleration structure: every verdict
+they give is the BVH's for the same ray, they give one for nearly every ray, and the rendered
+shadows do not depend on them."""
+
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+import warp as wp
+
+import pbrwarp as pw
+from pbrwarp.gpu_scene import upload
+from pbrwarp.kernels.lights import light_sampler
+from pbrwarp.kernels.light_buffer import UNDECIDED, LightBuffers, light_buffer_occlusion
+from pbrwarp.kernels.robust import RAY_FAR, SHADOW_RAY_SHORTENING, offset_ray_origin, triangle_hit_error
+from pbrwarp.kernels.scene_data import SceneData
+from pbrwarp.light_buffers import build, no_light_buffers
+from pbrwarp.meshes import ASSETS, bunny, icosphere
+
+from scenes import render_checked
+
+
+sample_light = light_sampler(True, True, True)
+
+
+@wp.kernel
+def verdicts(scene: SceneData, buffers: LightBuffers, light: int, faces: wp.array(dtype=int),
+             barycentrics: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.vec3i)):
+    """(light buffer verdict, BVH any-hit, lit by the light) for a shadow ray from a point on each
+    given triangle, spawned as the render kernel spawns them (it traces none outside a spot's cone)."""
+    i = wp.tid()
+    f = faces[i]
+    p0 = scene.positions[scene.indices[3 * f]]
+    p1 = scene.positions[scene.indices[3 * f + 1]]
+    p2 = scene.positions[scene.indices[3 * f + 2]]
+    b = barycentrics[i]
+    p = p0 * b[0] + p1 * b[1] + p2 * (1.0 - b[0] - b[1])
+    data = scene.lights[light]
+    to_light = -data.direction
+    if data.kind != 1:
+        to_light = wp.normalize(data.position - p)
+    ng = wp.normalize(wp.cross(p1 - p0, p2 - p0))
+    if wp.dot(ng, to_light) < 0.0:
+        ng = -ng
+    origin = offset_ray_origin(p, triangle_hit_error(p0, p1, p2), ng, to_light)
+    direction = to_light
+    max_t = RAY_FAR
+    if data.kind != 1:
+        direction = wp.normalize(data.position - origin)
+        max_t = wp.length(data.position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
+    verdict = light_buffer_occlusion(buffers, light, data.position, scene.positions, scene.indices, origin, direction,
+                                     max_t)
+    reached = wp.where(sample_light(data, p).irradiance == wp.vec3(0.0), 0, 1)
+    out[i] = wp.vec3i(verdict, wp.where(wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t), 1, 0), reached)
+
+
+def scene_with_floor(mesh, light):
+    scene = pw.Scene()
+    mesh = mesh.copy()
+    mesh.apply_translation(-mesh.bounding_box.centroid)
+    mesh.apply_scale(1.0 / np.max(np.linalg.norm(mesh.vertices, axis=1)))
+    scene.add_mesh(mesh, pw.Material())
+    scene.add_mesh(trimesh.Trimesh([[-4, -1, -4], [4, -1, -4], [4, -1, 4], [-4, -1, 4]], [[0, 2, 1], [0, 3, 2]]),
+                   pw.Material())
+    scene.add_light(light)
+    return scene
+
+
+LIGHTS = {
+    "point": pw.PointLight(position=(2.0, 3.0, 2.0), intensity=40.0),
+    "point inside the cube of the mesh": pw.PointLight(position=(0.0, 1.3, 0.2), intensity=40.0),
+    "directional": pw.DirectionalLight(direction=(-0.5, -1.0, -0.3), intensity=3.0),
+    "narrow spot": pw.SpotLight(position=(1.0, 3.0, 1.0), direction=(-0.3, -1.0, -0.3), intensity=60.0,
+                                inner_cone=0.3, outer_cone=0.5),
+    "wide spot": pw.SpotLight(position=(1.0, 3.0, 1.0), direction=(-0.3, -1.0, -0.3), intensity=60.0,
+                              inner_cone=1.0, outer_cone=1.4),
+}
+
+
+@pytest.mark.parametrize("light", LIGHTS)
+@pytest.mark.parametrize("mesh", ["icosphere", "bunny"])
+def test_light_buffer_verdicts_are_the_bvhs(light, mesh):
+    if mesh == "bunny" and not ASSETS.exists():
+        pytest.skip("shared/assets is not beside the repository")
+    scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), LIGHTS[light])
+    gpu = upload(scene)
+    buffers = build(scene, gpu)
+    rng = np.random.default_rng(1)
+    n = 200_000
+    faces = rng.integers(0, len(gpu.data.indices) // 3, n)
+    # the floor's two triangles get as many samples as the mesh
+    faces[: n // 2] = len(gpu.data.indices) // 3 - 1 - rng.integers(0, 2, n // 2)
+    uv = rng.random((n, 2))
+    uv = np.where(uv.sum(axis=1, keepdims=True) > 1.0, 1.0 - uv, uv)
+    out = wp.empty(n, dtype=wp.vec3i)
+    wp.launch(verdicts, dim=n, inputs=[gpu.data, buffers, 0, wp.array(faces, dtype=int), wp.array(uv, dtype=wp.vec2), out])
+    verdict, bvh, reached = out.numpy().T
+    verdict, bvh = verdict[reached == 1], bvh[reached == 1]
+    decided = verdict != int(UNDECIDED)
+    assert decided.mean() >= 0.99, decided.mean()
+    assert 0.02 < bvh.mean() < 0.98
+    # a ray grazing a triangle's edge may be told apart differently by the two traversals' rounding
+    assert (verdict[decided] != bvh[decided]).sum() <= 1e-4 * len(verdict)
+
+
+def test_no_light_buffer_for_a_light_on_a_surface():
+    scene = scene_with_floor(icosphere(3), pw.PointLight(position=(0.0, 1.0, 0.0), intensity=5.0))
+    buffers = build(scene, upload(scene))
+    assert tuple(buffers.light_views.numpy()[0]) == (0, 0)
+
+
+def test_buffers_are_reused_until_lights_or_geometry_move():
+    scene = scene_with_floor(icosphere(3), pw.PointLight(position=(2.0, 3.0, 2.0), intensity=40.0))
+    first = build(scene, upload(scene))
+    assert build(scene, upload(scene)) is first
+    scene.lights[0].intensity = 10.0
+    assert build(scene, upload(scene)) is first
+    scene.lights[0].position = (2.0, 3.0, 1.0)
+    assert build(scene, upload(scene)) is not first
+
+
+@pytest.mark.parametrize("light", ["point", "directional", "wide spot"])
+def test_rendered_shadows_do_not_depend_on_the_light_buffers(light, monkeypatch):
+    scene = scene_with_floor(bunny() if ASSETS.exists() else icosphere(5), LIGHTS[light])
+    cam = pw.Camera.look_at(eye=(0.0, 0.8, 3.2), target=(0.0, -0.2, 0.0))
+    with_buffers = render_checked(scene, cam, size=(160, 120))
+    monkeypatch.setattr(sys.modules["pbrwarp.render"], "build_light_buffers", lambda *args: no_light_buffers())
+    bvh_only = render_checked(scene, cam, size=(160, 120))
+    differs = ~np.all(np.isclose(with_buffers.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
+    assert differs.mean() <= 1e-3
+
+
+def test_a_light_over_the_entry_budget_leaves_its_rays_to_the_bvh(monkeypatch):
+    import pbrwarp.light_buffers as light_buffers
+
+    scene = scene_with_floor(icosphere(3), pw.PointLight(position=(2.0, 3.0, 2.0), intensity=40.0))
+    scene.add_light(pw.DirectionalLight(direction=(-0.5, -1.0, -0.3), intensity=3.0))
+    monkeypatch.setattr(light_buffers, "MAX_ENTRIES_PER_CELL", 0)
+    monkeypatch.setattr(light_buffers, "MAX_ENTRIES_PER_TRIANGLE", 0)
+    buffers = build(scene, upload(scene))
+    assert [tuple(s) for s in buffers.light_views.numpy()] == [(0, 0), (0, 0)]
