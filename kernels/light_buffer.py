@@ -216,10 +216,12 @@ def nearest_surface_distance(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), o
 @wp.func
 def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp.vec3,
                            positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), origin: wp.vec3,
-                           direction: wp.vec3, max_t: float) -> int:
+                           direction: wp.vec3, max_t: float, origin_face: int) -> int:
     """LIT, OCCLUDED or UNDECIDED (ask the BVH) for the shadow ray origin + t direction, 0 <= t <
     max_t, towards light ``light``: aimed at the light's position (point and spot lights) or
-    along its reversed direction (directional lights)."""
+    along its reversed direction (directional lights). The ray leaves triangle ``origin_face``
+    from an origin offset off its plane towards the light, so it cannot meet it (and is not
+    tested against it)."""
     span = buffers.light_views[light]
     if span[1] == 0:
         return UNDECIDED
@@ -263,7 +265,10 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
             for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
                 if buffers.cell_near[k] > reach:
                     break
-                c = triangle_corners(indices, buffers.cell_faces[k])
+                face = buffers.cell_faces[k]
+                if face == origin_face:
+                    continue
+                c = triangle_corners(indices, face)
                 hit, t, u, v = ray_triangle_intersection(origin, direction, positions[c[0]], positions[c[1]],
                                                          positions[c[2]])
                 if hit and t < max_t:

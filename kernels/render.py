@@ -50,6 +50,7 @@ class SurfaceHit:
     i2: int
     material: int
     back_face: int
+    face: int
 
 
 @wp.func
@@ -75,6 +76,7 @@ def surface_hit(scene: SceneData, face: int, u: float, v: float, ray_dir: wp.vec
         ng = -ng
     h.ng = ng
     h.material = scene.face_material[face]
+    h.face = face
     return h
 
 
@@ -189,7 +191,7 @@ def render_kernel(features):
             direction = safe_normalize(to_light, ls.to_light)
             max_t = distance * (1.0 - SHADOW_RAY_SHORTENING)
         verdict = light_buffer_occlusion(buffers, light, position, scene.positions, scene.indices, origin, direction,
-                                         max_t)
+                                         max_t, h.face)
         if verdict == UNDECIDED:
             return wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t)
         return verdict == OCCLUDED
