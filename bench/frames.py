@@ -4,9 +4,10 @@
 
 Scenes: the 81,920-triangle icosphere and the 69,451-triangle Stanford bunny, each standing on a
 two-triangle floor (so that it casts a shadow and shadows are not compiled out), one point
-light, spp 1, every core. Frames: visibility "raycast" and "raster", each with shadows by rays,
-by maps reused from the previous frame (a moving camera), and by maps rendered anew (moving
-lights or geometry), and without shadows. Embree: Open3D's RaycastingScene.cast_rays on the same
+light, spp 1, every core. Frames: visibility "raycast" and "raster", each with shadows by rays
+(through light buffers kept from the previous frame, or, "rebuilt", built anew for this one, as
+after a light or the geometry moved), by maps reused from the previous frame (a moving camera),
+and by maps rendered anew, and without shadows. Embree: Open3D's RaycastingScene.cast_rays on the same
 primary rays (when open3d is installed), the issue's yardstick: a full shaded frame with
 ray-traced shadows should take no longer than that one pass. Medians of --repeats runs after a
 warm-up, in one run. Writes bench/results/frames.{md,json}.
@@ -31,8 +32,8 @@ from pbrwarp.meshes import bunny, icosphere  # noqa: E402
 from pbrwarp.render import _camera_data  # noqa: E402
 
 VARIANTS = (
-    ("raycast", "rays"), ("raster", "rays"), ("raycast", "map reused"), ("raster", "map reused"),
-    ("raster", "map rebuilt"), ("raster", False),
+    ("raycast", "rays"), ("raster", "rays"), ("raster", "rays rebuilt"), ("raycast", "map reused"),
+    ("raster", "map reused"), ("raster", "map rebuilt"), ("raster", False),
 )
 
 
@@ -67,11 +68,13 @@ def embree_ms(scene, camera, size, repeats):
 
 
 def frame_ms(scene, camera, size, repeats, visibility, shadows):
-    mode = "map" if shadows and shadows.startswith("map") else shadows
+    mode = shadows.split()[0] if shadows else shadows
 
     def frame():
         if shadows == "map rebuilt":
             scene.__dict__.pop("_shadow_maps", None)
+        if shadows == "rays rebuilt":
+            scene.__dict__.pop("_light_buffers", None)
         pw.render(scene, camera, width=size, height=size, visibility=visibility, shadows=mode, progress=False)
 
     return 1e3 * median_time(frame, repeats)
@@ -98,9 +101,11 @@ def main(argv=None):
     for r in rows:
         embree = f"{r['embree_ms']:.1f}" if r["embree_ms"] is not None else "n/a"
         lines.append(f"| {r['scene']} | " + " | ".join(f"{r[k]:.1f}" for k in keys) + f" | {embree} |")
-    lines += ["", "Whole frames (spp 1, every core, medians). \"map reused\": the maps rendered for an earlier "
-              "frame serve this one (same lights and geometry); \"map rebuilt\": rendered for this frame, "
-              "six 1024² cube faces for the point light."]
+    lines += ["", "Whole frames (spp 1, every core, medians). \"rays\": shadow rays through the light buffers "
+              "built for an earlier frame (same lights and geometry), \"rays rebuilt\": built for this frame "
+              "(six 512² cube faces of triangle lists for the point light); \"map reused\": the maps rendered "
+              "for an earlier frame serve this one; \"map rebuilt\": rendered for this frame, six 1024² cube "
+              "faces for the point light."]
     command = "python bench/frames.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + \
         (f" --size {args.size}" if args.size != 1024 else "")
     write_results("frames", command, {"rows": rows}, "\n".join(lines) + "\n")

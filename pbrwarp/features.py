@@ -15,7 +15,7 @@ import numpy as np
 
 from .brdf import BRDF
 from .ibl import IBL
-from . import raster
+from . import light_buffers, raster
 from .errors import InputError
 from .shadow_maps import shadow_mode
 from .lights import DIRECTIONAL, POINT, SPOT
@@ -165,7 +165,8 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
                                   f"maps rasterized from each light ({scene.triangle_count:,} triangles)"))
     else:
         decisions.append(Decision("shadows", "rays", f"shadow rays: {len(scene.lights)} per hit, against "
-                                  f"{scene.triangle_count:,} triangles"))
+                                  f"{scene.triangle_count:,} triangles, through each light's light buffer "
+                                  f"(the triangles seen in each of {light_buffers.RESOLUTION}² directions per view)"))
     environment = scene.environment
     if environment is None:
         add("environment", False, "no environment lighting: scene.environment is None")
