@@ -3,7 +3,8 @@
     python bench/kernels.py [--repeats 5] [--quick]
 
 Stages (camera rays, closest hit, any hit) run as single launches on one thread and as tiles on
-every core; whole frames (one point light, ray-traced shadows on and off) on 1 and N threads.
+every core; whole frames (one point light, ray-traced shadows on and off, primary visibility ray
+cast as the stages are; bench/frames.py times rasterized frames) on 1 and N threads.
 Primary-ray throughput is also compared with Open3D's RaycastingScene (Embree) on the very same
 rays when the optional ``open3d-cpu`` package is installed. Medians of ``--repeats`` runs after a
 warm-up; ratios compare numbers measured in the same run. Writes bench/results/kernels.{md,json}.
@@ -97,7 +98,8 @@ def bench_mesh(name, mesh, size, repeats, threads_all):
         for shadows in (False, True):
             key = f"frame_{'shadows' if shadows else 'noshadows'}_ms_{threads}t"
             row[key] = 1e3 * median_time(lambda: pw.render(scene, cam, width=size, height=size, threads=threads,
-                                                           shadows=shadows, progress=False), repeats)
+                                                           shadows=shadows, visibility="raycast", progress=False),
+                                         repeats)
     hits = int((face.numpy() >= 0).sum())
     row["primary_hits"] = hits
     row["primary_mrays_per_s_1t"] = n / row["closest_hit_ms_1t"] / 1e3
