@@ -8,14 +8,16 @@ comparison needs.
 
 Coverage is decided in exact int64 arithmetic on vertices and samples snapped to 1/4096 pixel, with
 a tie-breaking rule on edges, so a sample on an edge shared by two triangles is covered exactly
-once. Triangles that reach behind the camera or outside the guard band are not projected: every
-sample in a conservative screen rectangle is tested with the ray-triangle intersection Warp's
-``mesh_query_ray`` uses (``ray_triangle_intersection``), which a shading kernel can also call
-to recompute the hit of the triangle this buffer names.
+once. Triangles that reach behind the camera or outside the guard band are not projected: they
+are rasterized homogeneously in float64 over a conservative screen rectangle
+(rasterize_homogeneous).
+``ray_triangle_intersection`` is the ray-triangle test Warp's ``mesh_query_ray`` runs, step for
+step, which a shading kernel calls to recompute the hit of the triangle this buffer names.
+A parallel projection (Projection.orthographic) serves directional lights' shadow maps.
 
-pbrwarp/raster.py runs the stages: sample positions, projected vertices, per-triangle screen
-rectangles binned into tiles, then rasterization, tiles taken from a queue shared by one launch
-per thread.
+pbrwarp/raster.py runs the stages: the buffer cleared and vertices projected; then per triangle
+its screen rectangle, small triangles drawn at once with atomic minima and larger ones binned
+into tiles; then the binned ones drawn, tiles taken from a queue shared by one launch per thread.
 """
 
 import warp as wp

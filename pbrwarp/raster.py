@@ -1,11 +1,12 @@
 """Primary visibility by rasterization (kernels/raster.py), on every core.
 
 :func:`visibility_buffer` gives, per sample, the nearest triangle and its depth. Stages: sample
-positions (camera independent, cached), projected vertices, screen rectangles binned into
-TILE_SIZE tiles, then one launch per thread from a thread pool (Warp CPU launches run on one
-thread and release the GIL), each taking tiles from a shared queue. Triangles are split into one
-chunk per thread for projection and binning; each tile is rasterized by one launch only, so no
-sample is written concurrently, and a sample keeps the minimum of its entries whatever the order
+positions (camera independent, cached); the buffer cleared and vertices projected; triangles'
+screen rectangles, small triangles drawn into the buffer at once (atomic minima, as two threads
+may write one sample) and larger ones binned into TILE_SIZE tiles; then one launch per thread
+from a thread pool (Warp CPU launches run on one thread and release the GIL), each taking tiles
+from a shared queue, a tile drawn by one launch only. Triangles are split into one chunk per
+thread for projection and binning. A sample keeps the minimum of its entries whatever the order
 they come in, so the buffer does not depend on the thread count.
 """
 
@@ -185,8 +186,10 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     triangle is hit; depth is camera-space z (the coefficient of cam.forward in point - eye),
     the lower id wins exact depth ties. Both facings are drawn, except triangles flagged (nonzero)
     in ``cull_back_faces`` (a uint8 wp.array, one entry per triangle), which are dropped where
-    they face away from the eye; degenerate triangles cover nothing; triangles behind the camera are dropped and those crossing the camera plane or
-    leaving the guard band are ray-tested per sample. ``threads`` defaults to every core; the
+    they face away from the eye; degenerate triangles cover nothing; triangles behind the camera
+    are dropped and those crossing the camera plane or leaving the guard band are rasterized
+    homogeneously (in float64, from their camera-space vertices; by casting each sample's ray when
+    the eye lies in their plane). ``threads`` defaults to every core; the
     buffer does not depend on it. ``out``, a buffer of that shape and dtype on the CPU, is filled
     and returned instead of a new one: reusing it saves the page faults of fresh memory, which
     take a third of a 2048² frame and do not scale across threads. ``timings``, if a dict,

@@ -111,7 +111,9 @@ def render(
     ``camera`` defaults to the scene file's first camera, else one framing the whole scene.
     ``spp`` samples per pixel are stratified (multi-jittered); spp = 1 samples pixel centres.
     ``threads`` defaults to every core; the image does not depend on it. ``shadows``: True or "rays"
-    traces one shadow ray per light and sample (the reference); "map" or a :class:`ShadowMap`
+    traces one shadow ray per light and sample (the reference), through each light's light buffer
+    (pbrwarp.light_buffers, built on first use and kept while geometry and lights stay put) or
+    Warp's BVH where the buffer cannot tell; "map" or a :class:`ShadowMap`
     looks shadows up in depth maps rasterized from each light (faster, approximate); False
     renders none. ``background`` is the linear radiance where no surface is
     hit (``frame.alpha`` records coverage for transparent output); by default the scene's
@@ -125,8 +127,9 @@ def render(
     ``brdf`` (:class:`BRDF`) picks each term's model and wins over ``quality``. ``visibility``
     finds what each camera sample sees: "raycast" (a BVH query per sample), "raster" (a
     rasterized visibility buffer, then the same ray-triangle test on the triangle it names, so
-    both shade identically where they pick the same triangle), or "auto" (the cheaper by a cost
-    model measured in bench/visibility.py). ``ibl`` (:class:`IBL`) picks how the scene's
+    both shade identically where they pick the same triangle; back faces that no camera ray can
+    show, of single-sided meshes and of closed ones seen from outside, are not drawn), or "auto"
+    (the cheaper by a cost model measured in bench/visibility.py). ``ibl`` (:class:`IBL`) picks how the scene's
     ``environment`` lights it (the ``quality`` preset's rungs otherwise). :func:`explain` says
     what is simulated.
     """
