@@ -691,21 +691,33 @@ def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=w
 @wp.kernel
 def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
                 screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64), proj: Projection,
-                samples: wp.array2d(dtype=wp.vec2), spp: int, first: int, end: int, chunk: int, tiles_x: int,
+                samples: wp.array2d(dtype=wp.vec2), spp: int, chunk_size: int, triangles: int, tiles_x: int,
                 cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
                 binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
                 tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
-                out: wp.array2d(dtype=wp.uint64)):
-    """Small triangles of a chunk drawn into ``out`` (cleared beforehand) at once; the others
-    that may cover a sample listed, with their screen rectangles, at binned_face and binned_rect
-    [first, first + binned_count[chunk]), and counted per tile they touch. Only this chunk's
-    launch writes its part of those, row ``chunk`` of tile_counts and bad_indices[chunk], set to 1 if a
-    triangle of the chunk has an index out of range (checked here, on every thread, rather than
-    by a serial pass before; such triangles are not read). Projected triangles whose flag in
-    ``cull_back_faces`` (empty: none) is set are dropped when they face away. Triangles
-    [first, end), ITEMS_PER_THREAD per thread."""
-    start = first + wp.tid() * ITEMS_PER_THREAD
-    for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
+                queue: wp.array(dtype=wp.int32), launches: int, stride: int, out: wp.array2d(dtype=wp.uint64)):
+    """Chunks of chunk_size triangles taken one at a time from ``queue``, shared by every launch
+    (launch ``stride`` times as many threads as launches, as any launch may take them all).
+    Ticket t names chunk (t mod launches) stride + t / launches, so that launches running side by
+    side draw chunks far apart in the mesh, and mostly in different places on screen, rather than
+    neighbours (whose small triangles would share the buffer's cache lines). Small triangles of a chunk
+    are drawn into ``out`` (cleared beforehand) at once; the others that may cover a sample
+    listed, with their screen rectangles, at binned_face and binned_rect [first, first +
+    binned_count[chunk]) (first = chunk chunk_size), and counted per tile they touch in row
+    ``chunk`` of tile_counts. bad_indices[chunk] is set to 1 if a triangle of the chunk has an
+    index out of range (checked here, on every thread, rather than by a serial pass before; such
+    triangles are not read). Projected triangles whose flag in ``cull_back_faces`` (empty: none)
+    is set are dropped when they face away. A chunk is taken by exactly one launch, so its parts
+    need no atomics, and launches that finish early take more: no thread waits for another
+    with a heavier share (say, the visible half of a mesh)."""
+    ticket = take_next_item(queue)
+    if ticket >= launches * stride:
+        return
+    chunk = (ticket % launches) * stride + ticket / launches
+    if chunk >= tile_counts.shape[0]:
+        return
+    first = chunk * chunk_size
+    for face in range(first, wp.min(first + chunk_size, triangles)):
         count_triangle(positions, indices, vertex_count, screen, depth_weights, proj, samples, spp, face, chunk,
                        tiles_x, cull_back_faces, first, binned_count, binned_face, binned_rect, tile_counts,
                        bad_indices, out)
@@ -741,12 +753,16 @@ def bin_triangle(binned_rect: wp.array(dtype=wp.vec4i), slot: int, chunk: int, t
 
 
 @wp.kernel
-def fill_bins(binned_rect: wp.array(dtype=wp.vec4i), first: int, end: int, chunk: int, tiles_x: int,
-              cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32)):
-    """Append the slot of each listed triangle of a chunk, slots [first, end), to the bin of every
-    tile its rectangle touches, at this chunk's cursor in that bin; ITEMS_PER_THREAD per thread."""
-    start = first + wp.tid() * ITEMS_PER_THREAD
-    for slot in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
+def fill_bins(binned_rect: wp.array(dtype=wp.vec4i), binned_count: wp.array(dtype=wp.int32), chunk_size: int,
+              tiles_x: int, cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32),
+              queue: wp.array(dtype=wp.int32)):
+    """Chunks taken from ``queue`` as in count_tiles: the slot of each listed triangle of a chunk
+    appended to the bin of every tile its rectangle touches, at the chunk's cursor in that bin."""
+    chunk = take_next_item(queue)
+    if chunk >= binned_count.shape[0]:
+        return
+    first = chunk * chunk_size
+    for slot in range(first, first + binned_count[chunk]):
         bin_triangle(binned_rect, slot, chunk, tiles_x, cursors, bins)
 
 

@@ -34,6 +34,9 @@ MAX_IMAGE_SIZE = rk.MAX_IMAGE_SIZE
 # than the work it would share (with the stages meeting at barriers, 4096 bins a 15k-triangle
 # mesh ~10% faster on 2 threads than 16384 did).
 MIN_CHUNK = 4096
+# Chunks of triangles per thread in binning, taken from a shared queue: a thread whose chunks
+# cost less (back faces culled, triangles off screen) takes more rather than waiting.
+CHUNKS_PER_THREAD = 4
 # Sample-position arrays kept for reuse (they depend on the image size, spp and seed only).
 CACHED_SAMPLE_LAYOUTS = 4
 
@@ -223,19 +226,23 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     tiles_x = math.ceil(width / TILE_SIZE)
     tiles = tiles_x * math.ceil(height / TILE_SIZE)
     vertex_chunks = _chunks(vertices, threads)
-    chunks = _chunks(triangles, threads)
+    # chunks of triangles taken from a queue, several per thread so that none waits for another
+    chunk_size = max(MIN_CHUNK, math.ceil(triangles / (threads * CHUNKS_PER_THREAD)))
+    chunk_count = max(math.ceil(triangles / chunk_size), 1)
+    chunk_stride = math.ceil(chunk_count / threads)
     scratch = _scratch.arrays  # the calling thread's, also when a pool thread allocates the bins
     screen = _scratch_array(scratch, "screen", vertices, wp.vec2i)
     depth_weights = _scratch_array(scratch, "depth_weights", vertices, wp.float64)
     binned_face = _scratch_array(scratch, "binned_face", triangles, wp.int32)
     binned_rect = _scratch_array(scratch, "binned_rect", triangles, wp.vec4i)
-    binned_count = wp.zeros(max(len(chunks), 1), dtype=wp.int32, device="cpu")
-    tile_counts = wp.zeros((max(len(chunks), 1), tiles), dtype=wp.int32, device="cpu")
-    bad_indices = wp.zeros(max(len(chunks), 1), dtype=wp.int32, device="cpu")
+    binned_count = wp.zeros(chunk_count, dtype=wp.int32, device="cpu")
+    tile_counts = wp.zeros((chunk_count, tiles), dtype=wp.int32, device="cpu")
+    bad_indices = wp.zeros(chunk_count, dtype=wp.int32, device="cpu")
     cursors = wp.empty(tile_counts.shape, dtype=wp.int32, device="cpu")
     bin_start = wp.empty(tiles + 1, dtype=wp.int32, device="cpu")
     bin_total = wp.empty(1, dtype=wp.int64, device="cpu")
-    queue = wp.zeros(1, dtype=wp.int32, device="cpu")
+    # counters of the chunk queues of binning and filling and of the tile queue
+    queues = wp.zeros(3, dtype=wp.int32, device="cpu")
     if out is None:
         out = huge_pages.empty((height, width * spp), wp.uint64)
     binned = {}
@@ -253,12 +260,10 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                       inputs=[positions, proj, first, first + count, screen, depth_weights])
 
     def count_tiles(k):
-        if k < len(chunks):
-            _, first, count = chunks[k]
-            wp.launch(rk.count_tiles, dim=_launch_threads(count), device="cpu",
-                      inputs=[positions, indices, vertices, screen, depth_weights, proj, samples, spp, first, first + count,
-                              k, tiles_x, cull_back_faces, binned_count, binned_face, binned_rect, tile_counts,
-                              bad_indices, out])
+        wp.launch(rk.count_tiles, dim=threads * chunk_stride, device="cpu",
+                  inputs=[positions, indices, vertices, screen, depth_weights, proj, samples, spp, chunk_size, triangles,
+                          tiles_x, cull_back_faces, binned_count, binned_face, binned_rect, tile_counts, bad_indices,
+                          queues[0:1], threads, chunk_stride, out])
 
     def allocate_bins():
         if bad_indices.numpy().any():
@@ -270,15 +275,10 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
         if total >= 2**31:
             raise InputError(f"too many triangle-tile pairs ({total}) for int32 bins")
         binned["bins"] = _scratch_array(scratch, "bins", total, wp.int32)
-        binned["count"] = binned_count.numpy()
 
     def fill_bins(k):
-        if k < len(chunks):
-            _, first, _ = chunks[k]
-            count = int(binned["count"][k])
-            if count:
-                wp.launch(rk.fill_bins, dim=_launch_threads(count), device="cpu",
-                          inputs=[binned_rect, first, first + count, k, tiles_x, cursors, binned["bins"]])
+        wp.launch(rk.fill_bins, dim=chunk_count, device="cpu",
+                  inputs=[binned_rect, binned_count, chunk_size, tiles_x, cursors, binned["bins"], queues[1:2]])
 
     def binning_done():
         binned["clock"] = time.perf_counter()
@@ -286,8 +286,8 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     def rasterize(k):
         # every thread takes tiles from the shared queue until none are left
         wp.launch(rk.rasterize_tiles, dim=tiles, device="cpu",
-                  inputs=[positions, indices, screen, depth_weights, binned_face, binned_rect, bin_start, binned["bins"], samples, spp, cam,
-                          proj, tiles_x, queue, out])
+                  inputs=[positions, indices, screen, depth_weights, binned_face, binned_rect, bin_start, binned["bins"],
+                          samples, spp, cam, proj, tiles_x, queues[2:3], out])
 
     run_stages([(project, None), (count_tiles, allocate_bins), (fill_bins, binning_done), (rasterize, None)], threads)
     if timings is not None:
