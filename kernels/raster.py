@@ -650,15 +650,16 @@ def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=w
     q2 = screen[c[2]]
     r = empty_rect()
     if is_projected(q0) and is_projected(q1) and is_projected(q2):
+        # the rectangle first: most triangles of a dense mesh hold no sample and end here
+        r = projected_rect(q0, q1, q2, spp, proj.width, proj.height)
+        if r[0] > r[2]:
+            return
         area = signed_area(q0, q1, q2)
         if area == wp.int64(0):
             return
         if cull_back_faces.shape[0] > 0:
             if cull_back_faces[face] != wp.uint8(0) and area * proj.back_facing_sign > wp.int64(0):
                 return
-        r = projected_rect(q0, q1, q2, spp, proj.width, proj.height)
-        if r[0] > r[2]:
-            return
         if rect_pixels(r) <= SMALL_TRIANGLE_PIXELS:
             # drawn now, with atomic minima, rather than binned and read again: most triangles of a
             # dense mesh are this small. A one-pixel rectangle with one sample is tested first, so
