@@ -26,6 +26,20 @@ def median_time(fn, repeats: int = 5, warmup: int = 1) -> float:
     return statistics.median(samples)
 
 
+def interleaved_medians(fns: dict, repeats: int = 5, warmup: int = 1) -> dict:
+    """Median wall time of each of ``fns`` (name -> callable), timed in turn, one call each per
+    round, after ``warmup`` untimed rounds: a burst of load on a shared machine then slows every
+    variant alike rather than one of them, which keeps their ratios meaningful."""
+    samples = {name: [] for name in fns}
+    for round_ in range(warmup + repeats):
+        for name, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            if round_ >= warmup:
+                samples[name].append(time.perf_counter() - t0)
+    return {name: statistics.median(times) for name, times in samples.items()}
+
+
 def machine() -> dict:
     import numpy
     import warp

@@ -9,8 +9,8 @@ light, spp 1, every core. Frames: visibility "raycast" and "raster", each with s
 after a light or the geometry moved), by maps reused from the previous frame (a moving camera),
 and by maps rendered anew, and without shadows. Embree: Open3D's RaycastingScene.cast_rays on the same
 primary rays (when open3d is installed), the issue's yardstick: a full shaded frame with
-ray-traced shadows should take no longer than that one pass. Medians of --repeats runs after a
-warm-up, in one run. Writes bench/results/frames.{md,json}.
+ray-traced shadows should take no longer than that one pass. Medians of --repeats rounds after a
+warm-up round, every variant and the Embree pass timed in turn within each round. Writes bench/results/frames.{md,json}.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import trimesh
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import median_time, write_results  # noqa: E402
+from common import interleaved_medians, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp.kernels import stages  # noqa: E402
@@ -50,7 +50,9 @@ def scene_on_floor(mesh):
     return scene, pw.Camera.look_at(eye=(0.0, 0.8, 3.2), target=(0.0, -0.2, 0.0))
 
 
-def embree_ms(scene, camera, size, repeats):
+def embree_pass(scene, camera, size):
+    """One Open3D (Embree) primary-ray pass over the camera's pixel centres, as a callable; None
+    without open3d."""
     try:
         import open3d as o3d
     except ImportError:
@@ -64,20 +66,21 @@ def embree_ms(scene, camera, size, repeats):
     wp.launch(stages.primary_ray_directions, dim=size * size, inputs=[cam, dirs], device="cpu")
     rays = np.hstack([np.broadcast_to(np.asarray(camera.eye, np.float32), (size * size, 3)), dirs.numpy()])
     rays = o3d.core.Tensor(rays.astype(np.float32))
-    return 1e3 * median_time(lambda: raycaster.cast_rays(rays), repeats)
+    return lambda: raycaster.cast_rays(rays)
 
 
-def frame_ms(scene, camera, size, repeats, visibility, shadows):
+def frame(scene, camera, size, visibility, shadows):
+    """One whole frame of a variant, as a callable."""
     mode = shadows.split()[0] if shadows else shadows
 
-    def frame():
+    def render_one():
         if shadows == "map rebuilt":
             scene.__dict__.pop("_shadow_maps", None)
         if shadows == "rays rebuilt":
             scene.__dict__.pop("_light_buffers", None)
         pw.render(scene, camera, width=size, height=size, visibility=visibility, shadows=mode, progress=False)
 
-    return 1e3 * median_time(frame, repeats)
+    return render_one
 
 
 def main(argv=None):
@@ -89,10 +92,15 @@ def main(argv=None):
     rows = []
     for name, mesh in (("icosphere (81,920 tris)", icosphere(6)), ("stanford bunny (69,451 tris)", bunny())):
         scene, camera = scene_on_floor(mesh)
-        row = {"scene": name, "embree_ms": embree_ms(scene, camera, args.size, args.repeats)}
-        for visibility, shadows in VARIANTS:
-            row[f"{visibility}, shadows {shadows or 'off'}"] = frame_ms(scene, camera, args.size, args.repeats,
-                                                                      visibility, shadows)
+        variants = {f"{visibility}, shadows {shadows or 'off'}": frame(scene, camera, args.size, visibility, shadows)
+                    for visibility, shadows in VARIANTS}
+        embree = embree_pass(scene, camera, args.size)
+        if embree is not None:
+            variants["embree"] = embree
+        # all variants in turn, round after round (common.interleaved_medians)
+        row = {"scene": name, "embree_ms": None}
+        row.update({("embree_ms" if key == "embree" else key): 1e3 * seconds
+                    for key, seconds in interleaved_medians(variants, args.repeats).items()})
         rows.append(row)
         print(row, file=sys.stderr)
     keys = [f"{v}, shadows {s or 'off'}" for v, s in VARIANTS]
@@ -101,7 +109,8 @@ def main(argv=None):
     for r in rows:
         embree = f"{r['embree_ms']:.1f}" if r["embree_ms"] is not None else "n/a"
         lines.append(f"| {r['scene']} | " + " | ".join(f"{r[k]:.1f}" for k in keys) + f" | {embree} |")
-    lines += ["", "Whole frames (spp 1, every core, medians). \"rays\": shadow rays through the light buffers "
+    lines += ["", "Whole frames (spp 1, every core, medians; every variant and the Embree pass timed in turn, "
+              "round after round). \"rays\": shadow rays through the light buffers "
               "built for an earlier frame (same lights and geometry), \"rays rebuilt\": built for this frame "
               "(six 512² cube faces of triangle lists for the point light); \"map reused\": the maps rendered "
               "for an earlier frame serve this one; \"map rebuilt\": rendered for this frame, six 1024² cube "
