@@ -16,8 +16,8 @@ to 1.3M triangles, Suzanne subdivided to 15k, the happy Buddha to 1.6M triangles
 terrain (a 1000 x 1000 height field seen at a slant) at 1024². Also the
 raster's time split (binning vs rasterization) and least-squares cost models, time = a triangles
 + b samples for the raster and c samples log2(triangles) for the ray cast, whose constants
-pbrwarp/raster.py keeps. Medians of --repeats rounds after a warm-up round, every variant timed in
-turn within each round.
+pbrwarp/raster.py keeps. Medians of --repeats rounds after a warm-up round, the raster variants and
+the Warp ray cast timed in turn within each round, Embree after them.
 Writes bench/results/visibility.{md,json}.
 """
 
@@ -33,7 +33,7 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import interleaved_medians, write_results  # noqa: E402
+from common import interleaved_medians, median_time, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp.gpu_scene import upload  # noqa: E402
@@ -117,6 +117,7 @@ def bench_case(label, mesh, size, repeats, threads_all):
     variants[f"raster_new_buffer_ms_{threads_all}t"] = lambda: raster(threads_all, None)
     variants[f"raster_culled_ms_{threads_all}t"] = lambda: raster(threads_all, cull=every_face)
     variants[f"raycast_ms_{threads_all}t"] = lambda: ray_cast(geometry, cam, threads_all, faces)
+    row.update({key: 1e3 * seconds for key, seconds in interleaved_medians(variants, repeats).items()})
     o3d = open3d_scene(mesh)
     if o3d is not None:
         import open3d
@@ -125,8 +126,10 @@ def bench_case(label, mesh, size, repeats, threads_all):
         wp.launch(stages.primary_ray_directions, dim=samples, inputs=[cam, dirs], device="cpu")
         rays = np.hstack([np.broadcast_to(np.asarray(camera.eye, np.float32), (samples, 3)), dirs.numpy()])
         rays = open3d.core.Tensor(rays.astype(np.float32))
-        variants["embree_ms"] = lambda: o3d.cast_rays(rays)
-    row.update({key: 1e3 * seconds for key, seconds in interleaved_medians(variants, repeats).items()})
+        # timed apart, afterwards: Open3D's worker threads keep spinning for a while after a call,
+        # which slowed whatever ran next on these 2 cores (2-thread raster times rose up to 40%
+        # when interleaved with it)
+        row["embree_ms"] = 1e3 * median_time(lambda: o3d.cast_rays(rays), repeats)
     splits = splits[1:]  # the warm-up round's
     row["binning_ms"] = 1e3 * statistics.median(t["binning"] for t in splits)
     row["rasterization_ms"] = 1e3 * statistics.median(t["raster"] for t in splits)
@@ -188,7 +191,7 @@ def markdown(rows, model, threads_all):
         "buffer clear, vertex projection, small triangles drawn at once, the others' rectangles binned; "
         "rasterization = the binned triangles, tile by tile), sample "
         "positions cached, output buffer reused (out=) except in the new-buffer column, whose fresh pages "
-        "page-fault. Every variant, the ray casts included, is timed in turn, round after round. Back faces culled: every "
+        "page-fault. Every variant and the Warp ray cast are timed in turn, round after round; Embree after them. Back faces culled: every "
         "triangle flagged in cull_back_faces, as pw.render flags single-sided meshes and closed ones seen from "
         "outside (the icospheres are closed; the others stand for single-sided meshes). Ray cast: "
         "wp.mesh_query_ray per pixel in row bands on the thread pool. Embree: "
