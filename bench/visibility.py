@@ -16,8 +16,7 @@ to 1.3M triangles, Suzanne subdivided to 15k, the happy Buddha to 1.6M triangles
 terrain (a 1000 x 1000 height field seen at a slant) at 1024². Also the
 raster's time split (binning vs rasterization) and least-squares cost models, time = a triangles
 + b samples for the raster and c samples log2(triangles) for the ray cast, whose constants
-pbrwarp/raster.py keeps. Medians of --repeats rounds after a warm-up round, the raster variants and
-the Warp ray cast timed in turn within each round, Embree after them.
+pbrwarp/raster.py keeps. Medians of --repeats runs after a warm-up.
 Writes bench/results/visibility.{md,json}.
 """
 
@@ -28,12 +27,13 @@ import math
 import os
 import statistics
 import sys
+import time
 
 import numpy as np
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import interleaved_medians, median_time, write_results  # noqa: E402
+from common import median_time, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp.gpu_scene import upload  # noqa: E402
@@ -100,24 +100,35 @@ def bench_case(label, mesh, size, repeats, threads_all):
         return visibility_buffer(geometry.positions, geometry.indices, cam, threads=threads, out=out, timings=timings,
                                  cull_back_faces=cull)
 
+    # 1 and all threads, reused and new buffer, in turn, so that a burst of load on this shared
+    # machine slows every variant alike rather than one of them (their ratios matter)
+    variants = {f"raster_ms_{threads}t": (threads, buffer, None) for threads in sorted({1, threads_all})}
+    variants[f"raster_new_buffer_ms_{threads_all}t"] = (threads_all, None, None)
+    variants[f"raster_culled_ms_{threads_all}t"] = (threads_all, buffer, every_face)
+    times = {key: [] for key in variants}
+    splits = []
+    for repeat in range(repeats + 1):  # the first round warms up
+        for key, (threads, out, cull) in variants.items():
+            split = {}
+            t0 = time.perf_counter()
+            raster(threads, out, split, cull)
+            if repeat:
+                times[key].append(time.perf_counter() - t0)
+                if key == f"raster_ms_{threads_all}t":
+                    splits.append(split)
+    for key, seconds in times.items():
+        row[key] = 1e3 * statistics.median(seconds)
+    row["binning_ms"] = 1e3 * statistics.median(t["binning"] for t in splits)
+    row["rasterization_ms"] = 1e3 * statistics.median(t["raster"] for t in splits)
+
     faces = wp.empty((size, size), dtype=wp.int32, device="cpu")
     load_for_cpu(ray_cast_band)
-    splits = []
+    row[f"raycast_ms_{threads_all}t"] = 1e3 * median_time(lambda: ray_cast(geometry, cam, threads_all, faces), repeats)
+    ids, _ = decode(raster(threads_all))
+    row["coverage"] = float((ids >= 0).mean())
+    row["same_triangle"] = float((ids == faces.numpy()).mean())
+    row["culled_same_triangle"] = float((decode(raster(threads_all, cull=every_face))[0] == ids).mean())
 
-    def timed_raster():
-        split = {}
-        raster(threads_all, buffer, split)
-        splits.append(split)
-
-    # every variant in turn, round after round, so that a burst of load on this shared machine
-    # slows all alike rather than one of them (their ratios matter)
-    variants = {f"raster_ms_{threads_all}t": timed_raster}
-    if threads_all != 1:
-        variants["raster_ms_1t"] = lambda: raster(1)
-    variants[f"raster_new_buffer_ms_{threads_all}t"] = lambda: raster(threads_all, None)
-    variants[f"raster_culled_ms_{threads_all}t"] = lambda: raster(threads_all, cull=every_face)
-    variants[f"raycast_ms_{threads_all}t"] = lambda: ray_cast(geometry, cam, threads_all, faces)
-    row.update({key: 1e3 * seconds for key, seconds in interleaved_medians(variants, repeats).items()})
     o3d = open3d_scene(mesh)
     if o3d is not None:
         import open3d
@@ -126,17 +137,7 @@ def bench_case(label, mesh, size, repeats, threads_all):
         wp.launch(stages.primary_ray_directions, dim=samples, inputs=[cam, dirs], device="cpu")
         rays = np.hstack([np.broadcast_to(np.asarray(camera.eye, np.float32), (samples, 3)), dirs.numpy()])
         rays = open3d.core.Tensor(rays.astype(np.float32))
-        # timed apart, afterwards: Open3D's worker threads keep spinning for a while after a call,
-        # which slowed whatever ran next on these 2 cores (2-thread raster times rose up to 40%
-        # when interleaved with it)
         row["embree_ms"] = 1e3 * median_time(lambda: o3d.cast_rays(rays), repeats)
-    splits = splits[1:]  # the warm-up round's
-    row["binning_ms"] = 1e3 * statistics.median(t["binning"] for t in splits)
-    row["rasterization_ms"] = 1e3 * statistics.median(t["raster"] for t in splits)
-    ids, _ = decode(raster(threads_all))
-    row["coverage"] = float((ids >= 0).mean())
-    row["same_triangle"] = float((ids == faces.numpy()).mean())
-    row["culled_same_triangle"] = float((decode(raster(threads_all, cull=every_face))[0] == ids).mean())
 
     for key in [k for k in row if k.endswith("_ms") or "_ms_" in k]:
         if key not in ("binning_ms", "rasterization_ms"):
@@ -191,7 +192,7 @@ def markdown(rows, model, threads_all):
         "buffer clear, vertex projection, small triangles drawn at once, the others' rectangles binned; "
         "rasterization = the binned triangles, tile by tile), sample "
         "positions cached, output buffer reused (out=) except in the new-buffer column, whose fresh pages "
-        "page-fault. Every variant and the Warp ray cast are timed in turn, round after round; Embree after them. Back faces culled: every "
+        "page-fault; the four raster variants are timed in turn, round after round. Back faces culled: every "
         "triangle flagged in cull_back_faces, as pw.render flags single-sided meshes and closed ones seen from "
         "outside (the icospheres are closed; the others stand for single-sided meshes). Ray cast: "
         "wp.mesh_query_ray per pixel in row bands on the thread pool. Embree: "
