@@ -140,3 +140,21 @@ def test_a_light_over_the_entry_budget_leaves_its_rays_to_the_bvh(monkeypatch):
     monkeypatch.setattr(light_buffers, "MAX_ENTRIES_PER_TRIANGLE", 0)
     buffers = build(scene, upload(scene))
     assert [tuple(s) for s in buffers.light_views.numpy()] == [(0, 0), (0, 0)]
+
+
+GLTF = sorted(ASSETS.glob("gltf/*/glTF*/*.gl*"))
+
+
+@pytest.mark.parametrize("path", GLTF, ids=[p.name for p in GLTF])
+def test_every_asset_renders_the_same_shadows_with_and_without_light_buffers(path, monkeypatch):
+    scene = pw.Scene.load(path)
+    lo, hi = scene.bounds()
+    centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+    scene.add_light(pw.PointLight(position=tuple(centre + np.array([0.6, 1.2, 0.8]) * radius),
+                                  intensity=50.0 * radius * radius))
+    scene.add_light(pw.DirectionalLight(direction=(-0.4, -1.0, -0.3), intensity=2.0))
+    with_buffers = render_checked(scene, None, size=(96, 72))
+    monkeypatch.setattr(sys.modules["pbrwarp.render"], "build_light_buffers", lambda *args: no_light_buffers())
+    bvh_only = render_checked(scene, None, size=(96, 72))
+    differs = ~np.all(np.isclose(with_buffers.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
+    assert differs.mean() <= 1e-3
