@@ -222,6 +222,8 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
     along its reversed direction (directional lights). The ray leaves triangle ``origin_face``
     from an origin offset off its plane towards the light, so it cannot meet it (and is not
     tested against it)."""
+    if light >= buffers.light_views.shape[0]:
+        return UNDECIDED  # buffers built for fewer lights (no_light_buffers): the BVH answers
     span = buffers.light_views[light]
     if span[1] == 0:
         return UNDECIDED

@@ -127,7 +127,8 @@ def _clearances(gpu, lights) -> list[float]:
 
 @functools.cache
 def no_light_buffers() -> lb.LightBuffers:
-    """The render kernel's argument when no shadow rays are traced: every light left to the BVH."""
+    """Light buffers for no light: the render kernel's argument when it traces no shadow rays; given
+    with shadow rays, every light's rays go to the BVH."""
     buffers = lb.LightBuffers()
     buffers.views = wp.array([lb.Projection()], dtype=lb.Projection, device="cpu")
     buffers.light_views = wp.array([(0, 0)], dtype=wp.vec2i, device="cpu")
