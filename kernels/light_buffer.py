@@ -14,6 +14,7 @@ in the rasterizer's Projection (cells are its pixels). A ray whose cells cannot 
 import warp as wp
 
 from .raster import (
+    ITEMS_PER_THREAD,
     Projection,
     camera_coordinates,
     clipped_rect,
@@ -38,8 +39,6 @@ CELL_MARGIN = wp.constant(wp.float64(1.0e-3))
 # A ray spanning more cells than this (its origin lies close to the light, or it runs nearly
 # across the light's view) is left to the BVH.
 MAX_QUERY_CELLS = wp.constant(4)
-# Triangles per Warp thread when binning (a CPU launch copies its arguments per thread).
-ITEMS_PER_THREAD = wp.constant(64)
 # Nearness values are lowered by this fraction so that rounding never makes a triangle seem
 # farther from the light than a point on it.
 NEAR_SHRINK = wp.constant(1.0e-6)

@@ -11,8 +11,8 @@ import numpy as np
 import warp as wp
 
 from .errors import InputError
-from .parallel import run, thread_count
-from .raster import projection
+from .parallel import run_all, thread_count
+from .raster import launch_threads, projection
 from .shadow_maps import light_views, light_geometry
 from pbrwarp.kernels import light_buffer as lb
 from pbrwarp.kernels.loading import load_for_cpu
@@ -28,15 +28,6 @@ MAX_ENTRIES_PER_TRIANGLE = 16
 MAX_ENTRIES_PER_CELL = 8
 # Fraction taken off the float32 distance from a light to the nearest surface.
 CLEARANCE_MARGIN = 1.0e-3
-
-
-def _launch_threads(items: int) -> int:
-    return -(-items // int(lb.ITEMS_PER_THREAD))
-
-
-def _parallel(fn, jobs, threads):
-    for _ in run(fn, jobs, threads):
-        pass
 
 
 def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
@@ -71,10 +62,10 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     counts = wp.zeros(max(len(views), 1) * cells, dtype=wp.int32, device="cpu")
 
     def count(v):
-        wp.launch(lb.count_cells, dim=_launch_threads(triangles), device="cpu",
+        wp.launch(lb.count_cells, dim=launch_threads(triangles), device="cpu",
                   inputs=[positions, indices, views[v], v * cells, triangles, counts])
 
-    _parallel(count, range(len(views)), threads)
+    run_all(count, range(len(views)), threads)
     per_cell = counts.numpy().reshape(-1, cells)
     kept = []
     for k, (first, n) in enumerate(spans):
@@ -97,11 +88,11 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     cell_near = wp.empty(entries, dtype=float, device="cpu")
 
     def fill_and_sort(v):
-        wp.launch(lb.fill_cells, dim=_launch_threads(triangles), device="cpu",
+        wp.launch(lb.fill_cells, dim=launch_threads(triangles), device="cpu",
                   inputs=[positions, indices, views[v], v * cells, triangles, cursors, cell_faces, cell_near])
         wp.launch(lb.sort_cells, dim=cells, device="cpu", inputs=[v * cells, cell_start, cell_faces, cell_near])
 
-    _parallel(fill_and_sort, kept, threads)
+    run_all(fill_and_sort, kept, threads)
     buffers = lb.LightBuffers()
     buffers.views = wp.array(views if views else [lb.Projection()], dtype=lb.Projection, device="cpu")
     buffers.light_views = wp.array(spans if spans else [(0, 0)], dtype=wp.vec2i, device="cpu")

@@ -27,6 +27,12 @@ def run(fn, jobs, threads: int):
     return thread_pool(threads).map(fn, jobs)
 
 
+def run_all(fn, jobs, threads: int):
+    """fn(job) for every job on ``threads`` pool threads (see :func:`run`), waiting for all."""
+    for _ in run(fn, jobs, threads):
+        pass
+
+
 def thread_count(threads) -> int:
     """``threads``, or every core for None."""
     if threads is None:

@@ -21,7 +21,7 @@ import warp as wp
 
 from . import huge_pages
 from .errors import InputError, InputTypeError
-from .parallel import run, run_stages, thread_count
+from .parallel import run_all, run_stages, thread_count
 from pbrwarp.kernels import raster as rk
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
@@ -73,12 +73,6 @@ KERNELS = (rk.sample_positions, rk.clear_rows, rk.project_vertices, rk.count_til
            rk.rasterize_tiles)
 
 
-def _run(fn, jobs, threads: int):
-    """fn(job) for every job, on ``threads`` pool threads, waiting for all."""
-    for _ in run(fn, jobs, threads):
-        pass
-
-
 def _chunks(n: int, parts: int, minimum: int = MIN_CHUNK):
     """(index, first, count) of up to ``parts`` contiguous non-empty ranges, of at least
     ``minimum`` elements unless there is only one, covering [0, n)."""
@@ -86,7 +80,7 @@ def _chunks(n: int, parts: int, minimum: int = MIN_CHUNK):
     return [(k, first, min(step, n - first)) for k, first in enumerate(range(0, n, step))]
 
 
-def _launch_threads(items: int) -> int:
+def launch_threads(items: int) -> int:
     """Launch dimension for ``items`` handled ITEMS_PER_THREAD per Warp thread."""
     return -(-items // ITEMS_PER_THREAD)
 
@@ -113,7 +107,7 @@ def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
         wp.launch(rk.sample_positions, dim=rows * width * spp, device="cpu",
                   inputs=[spp, grid_m, grid_n, seed, width, first_row, out])
 
-    _run(launch, _chunks(height, threads, minimum=1), threads)
+    run_all(launch, _chunks(height, threads, minimum=1), threads)
     _sample_cache[key] = out
     while len(_sample_cache) > CACHED_SAMPLE_LAYOUTS:
         del _sample_cache[next(iter(_sample_cache))]
@@ -256,7 +250,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
             wp.launch(rk.clear_rows, dim=rows, device="cpu", inputs=[first_row, out])
         if k < len(vertex_chunks):
             _, first, count = vertex_chunks[k]
-            wp.launch(rk.project_vertices, dim=_launch_threads(count), device="cpu",
+            wp.launch(rk.project_vertices, dim=launch_threads(count), device="cpu",
                       inputs=[positions, proj, first, first + count, screen, depth_weights])
 
     def count_tiles(k):
