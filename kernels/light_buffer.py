@@ -36,6 +36,10 @@ UNDECIDED = wp.constant(2)
 # Margin, in cells, of triangle rectangles and query rectangles: far above the rounding of the
 # float64 projections (1e-12 cells), so that a ray and a triangle it meets always share a cell.
 CELL_MARGIN = wp.constant(wp.float64(1.0e-3))
+# Bound on the angle between a shadow ray's float32 direction and the exact one towards the light,
+# relative to (1 + the coordinates' magnitude over the distance): the difference of light and
+# origin rounds to half an ulp of the larger per component, the normalization to a few ulps.
+DIRECTION_ROUNDING = wp.constant(1.0e-6)
 # A ray spanning more cells than this (its origin lies close to the light, or it runs nearly
 # across the light's view) is left to the BVH.
 MAX_QUERY_CELLS = wp.constant(4)
@@ -231,19 +235,27 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
         view = span[0] + cube_face(origin - light_position)
     proj = buffers.views[view]
     co = camera_coordinates(proj, origin)
-    # how far along the ray a triangle may be met: short of the light by its clearance, or up to
-    # the plane of a parallel view, behind every triangle
-    reach = float(co[2])
+    # The ray is met only where it lies in front of a parallel view's plane (all triangles do), or
+    # farther than the clearance from a point light; it misses the light by the float32 rounding
+    # of its direction, at most `slack` times the distance travelled. Past t_end (taken in float64,
+    # like both endpoints, which are then projected to the cells between them) it lies within the
+    # clearance of the light, where no triangle is.
+    reach = co[2]
     t_end = reach
     if proj.orthographic == 0:
-        reach = wp.length(light_position - origin)
-        t_end = reach - buffers.clearance[light]
-    t_end = wp.clamp(t_end, 0.0, max_t)
-    end = origin + direction * t_end
-    if span[1] == CUBE_FACES:
-        if cube_face(end - light_position) != view - span[0]:
-            return UNDECIDED
-    ce = camera_coordinates(proj, end)
+        distance = wp.length(light_position - origin)
+        magnitude = wp.max(wp.max(wp.abs(light_position[0]), wp.abs(light_position[1])),
+                           wp.max(wp.abs(light_position[2]), wp.max(wp.abs(origin[0]), wp.max(wp.abs(origin[1]),
+                                                                                             wp.abs(origin[2])))))
+        slack = wp.float64(DIRECTION_ROUNDING * (1.0 + magnitude / distance))
+        # an upper bound of the exact distance, and of every ray point's distance to the light
+        reach = wp.float64(distance) * (wp.float64(1.0) + wp.float64(2.0) * slack)
+        t_end = reach * (wp.float64(1.0) + slack) - wp.float64(buffers.clearance[light]) * (wp.float64(1.0) - slack)
+        if t_end >= reach:
+            return UNDECIDED  # the rounding may carry the ray beyond the clearance
+    t_end = wp.clamp(t_end, wp.float64(0.0), wp.float64(max_t))
+    end = to_double(origin) + to_double(direction) * t_end
+    ce = proj.to_camera * (end - proj.eye)
     if proj.orthographic == 0 and (co[2] <= wp.float64(0.0) or ce[2] <= wp.float64(0.0)):
         return UNDECIDED
     xo = screen_x(proj, co)
@@ -264,7 +276,7 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
         for x in range(r[0], r[2] + 1):
             e = view * buffers.resolution * buffers.resolution + y * buffers.resolution + x
             for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
-                if buffers.cell_near[k] > reach:
+                if wp.float64(buffers.cell_near[k]) > reach:
                     break
                 face = buffers.cell_faces[k]
                 if face == origin_face:

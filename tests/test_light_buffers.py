@@ -2,6 +2,7 @@
 they give is the BVH's for the same ray, they give one for nearly every ray, and the rendered
 shadows do not depend on them."""
 
+import dataclasses
 import sys
 
 import numpy as np
@@ -55,14 +56,15 @@ def verdicts(scene: SceneData, buffers: LightBuffers, light: int, faces: wp.arra
     out[i] = wp.vec3i(verdict, wp.where(wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t), 1, 0), reached)
 
 
-def scene_with_floor(mesh, light):
+def scene_with_floor(mesh, light, shift=0.0):
     scene = pw.Scene()
     mesh = mesh.copy()
     mesh.apply_translation(-mesh.bounding_box.centroid)
     mesh.apply_scale(1.0 / np.max(np.linalg.norm(mesh.vertices, axis=1)))
+    mesh.apply_translation(np.broadcast_to(shift, 3))
     scene.add_mesh(mesh, pw.Material())
-    scene.add_mesh(trimesh.Trimesh([[-4, -1, -4], [4, -1, -4], [4, -1, 4], [-4, -1, 4]], [[0, 2, 1], [0, 3, 2]]),
-                   pw.Material())
+    floor = np.array([[-4, -1, -4], [4, -1, -4], [4, -1, 4], [-4, -1, 4]], float) + shift
+    scene.add_mesh(trimesh.Trimesh(floor, [[0, 2, 1], [0, 3, 2]]), pw.Material())
     scene.add_light(light)
     return scene
 
@@ -78,12 +80,23 @@ LIGHTS = {
 }
 
 
+def moved(light, offset):
+    """``light`` with its position moved by ``offset`` (directional lights unchanged)."""
+    if not hasattr(light, "position"):
+        return light
+    return dataclasses.replace(light, position=tuple(np.asarray(light.position) + offset))
+
+
 @pytest.mark.parametrize("light", LIGHTS)
-@pytest.mark.parametrize("mesh", ["icosphere", "bunny"])
-def test_light_buffer_verdicts_are_the_bvhs(light, mesh):
+@pytest.mark.parametrize("mesh,offset", [("icosphere", 0.0), ("bunny", 0.0), ("icosphere", 1e4)],
+                         ids=["icosphere", "bunny", "icosphere 1e4 from the origin"])
+def test_light_buffer_verdicts_are_the_bvhs(light, mesh, offset):
+    """Far from the origin the float32 shadow rays miss the light by more: still no verdict differs."""
     if mesh == "bunny" and not ASSETS.exists():
         pytest.skip("shared/assets is not beside the repository")
-    scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), LIGHTS[light])
+    shift = np.array([offset, 0.5 * offset, -offset])
+    scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), moved(LIGHTS[light], shift),
+                             shift)
     gpu = upload(scene)
     buffers = build(scene, gpu)
     rng = np.random.default_rng(1)
