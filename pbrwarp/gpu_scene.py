@@ -223,15 +223,32 @@ def upload(scene) -> GpuScene:
 
 
 def _is_closed_volume(prim) -> bool:
-    """Whether a primitive bounds a volume with its faces turned outwards (watertight, consistently
-    wound, positive volume); cached, as the edge checks are costly for big meshes. Vertices are
-    not merged: a mesh split at UV seams counts as open."""
+    """Whether a primitive bounds a volume with its faces turned outwards: every directed edge
+    appears once and its reverse once (watertight and consistently wound; vertices are not
+    merged, so a mesh split at UV seams counts as open) and the signed volume is positive.
+    Cached on the primitive: the edge sort costs ~0.1 s per million triangles."""
     cached = prim.__dict__.get("_closed_volume")
     if cached is None:
-        import trimesh
+        faces = np.asarray(prim.faces, dtype=np.int64)
+        closed = len(faces) > 0 and not np.any((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
+                                                 | (faces[:, 2] == faces[:, 0]))
+        if closed:
+            tail, head = faces.reshape(-1), np.roll(faces, -1, axis=1).reshape(-1)
+            edges = np.sort(tail * len(prim.positions) + head)
+            reversed_edges = np.sort(head * len(prim.positions) + tail)
+            closed = bool(np.all(edges[1:] != edges[:-1]) and np.array_equal(edges, reversed_edges))
+        if closed:
+            p = prim.positions[faces]
+            closed = float(np.einsum("ij,ij->", p[:, 0], np.cross(p[:, 1], p[:, 2]))) > 0.0
+        cached = prim.__dict__["_closed_volume"] = closed
+    return cached
 
-        cached = prim.__dict__["_closed_volume"] = bool(
-            trimesh.Trimesh(prim.positions, prim.faces, process=False).is_volume)
+
+def _bounds(prim) -> tuple[np.ndarray, np.ndarray]:
+    """A primitive's bounding box (cached: positions are fixed once the primitive is uploaded)."""
+    cached = prim.__dict__.get("_bounds")
+    if cached is None:
+        cached = prim.__dict__["_bounds"] = (prim.positions.min(axis=0), prim.positions.max(axis=0))
     return cached
 
 
@@ -246,7 +263,7 @@ def back_face_culling(scene, gpu: GpuScene, eye) -> tuple[wp.array | None, int]:
     for prim in scene.primitives:
         culled = not prim.material.double_sided
         if not culled and prim.material.alpha_mode != "MASK":
-            lo, hi = prim.positions.min(axis=0), prim.positions.max(axis=0)
+            lo, hi = _bounds(prim)
             culled = bool(np.any(eye < lo) or np.any(eye > hi)) and _is_closed_volume(prim)
         flags.append(culled)
     if not any(flags):
