@@ -96,6 +96,8 @@ def test_back_faces_are_culled_only_where_no_camera_ray_shows_them():
         (sphere, pw.Material(alpha_mode="MASK"), (0.0, 0.0, 3.0), False),  # seen through cut-outs
         (plane, pw.Material(), (0.0, 2.0, 0.0), False),  # open and double-sided
         (sphere.copy().invert(), pw.Material(), (0.0, 0.0, 3.0), False),  # faces turned inwards
+        (trimesh.creation.torus(1.0, 0.3), pw.Material(), (0.0, 0.0, 3.0), True),  # closed, genus 1
+        (sphere.copy().subdivide(face_index=[0]), pw.Material(), (0.0, 0.0, 3.0), False),  # T-junctions: open
     ]
     for mesh, material, eye, culled in cases:
         scene = pw.Scene()
