@@ -123,8 +123,9 @@ def render_kernel(features):
         return False
 
     @wp.func
-    def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit,
-              mat: MaterialData, uv: wp.vec2, view: wp.vec3, n: wp.vec3, seed: int, stream: int) -> wp.vec3:
+    def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
+              dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3,
+              n: wp.vec3, seed: int, stream: int) -> wp.vec3:
         radiance = wp.vec3(0.0)
         if wp.static(f.emission):
             radiance = mat.emissive

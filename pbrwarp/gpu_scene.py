@@ -245,10 +245,10 @@ def _is_closed_volume(prim) -> bool:
 
 
 def _bounds(prim) -> tuple[np.ndarray, np.ndarray]:
-    """A primitive's bounding box (cached: positions are fixed once the primitive is uploaded)."""
+    """prim.bounds(), cached: positions are fixed once the primitive is uploaded."""
     cached = prim.__dict__.get("_bounds")
     if cached is None:
-        cached = prim.__dict__["_bounds"] = (prim.positions.min(axis=0), prim.positions.max(axis=0))
+        cached = prim.__dict__["_bounds"] = prim.bounds()
     return cached
 
 

@@ -5,8 +5,8 @@ positions (camera independent, cached); the buffer cleared and vertices projecte
 screen rectangles, small triangles drawn into the buffer at once (atomic minima, as two threads
 may write one sample) and larger ones binned into TILE_SIZE tiles; then one launch per thread
 from a thread pool (Warp CPU launches run on one thread and release the GIL), each taking tiles
-from a shared queue, a tile drawn by one launch only. Triangles are split into one chunk per
-thread for projection and binning. A sample keeps the minimum of its entries whatever the order
+from a shared queue, a tile drawn by one launch only. Vertices are split into one range per
+thread; triangles into a few chunks per thread, also taken from a queue. A sample keeps the minimum of its entries whatever the order
 they come in, so the buffer does not depend on the thread count.
 """
 
@@ -130,7 +130,8 @@ def projection(cam: CameraData, orthographic: bool = False) -> rk.Projection:
     or, ``orthographic``, the parallel projection along cam.forward whose view spans
     cam.right and cam.up (half-extents in world units) about cam.eye."""
     axes = np.array([cam.right, cam.up, cam.forward], dtype=np.float64).T
-    if not np.all(np.isfinite(axes)) or abs(np.linalg.det(axes)) < 1e-300:
+    det = np.linalg.det(axes) if np.all(np.isfinite(axes)) else np.nan
+    if not abs(det) >= 1e-300:
         raise InputError("camera axes must be finite and linearly independent")
     proj = rk.Projection()
     proj.eye = wp.vec3d(*np.array(cam.eye, dtype=np.float64))
@@ -141,7 +142,7 @@ def projection(cam: CameraData, orthographic: bool = False) -> rk.Projection:
     proj.orthographic = int(bool(orthographic))
     # a triangle whose vertices run counter-clockwise seen from the eye projects with area of
     # the sign of det(axes) (screen y points down)
-    proj.back_facing_sign = -1 if np.linalg.det(axes) > 0 else 1
+    proj.back_facing_sign = -1 if det > 0 else 1
     return proj
 
 

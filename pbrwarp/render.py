@@ -129,8 +129,8 @@ def render(
     rasterized visibility buffer, then the same ray-triangle test on the triangle it names, so
     both shade identically where they pick the same triangle; back faces that no camera ray can
     show, of single-sided meshes and of closed ones seen from outside, are not drawn), or "auto"
-    (the cheaper by a cost model measured in bench/visibility.py). ``ibl`` (:class:`IBL`) picks how the scene's
-    ``environment`` lights it (the ``quality`` preset's rungs otherwise). :func:`explain` says
+    (the cheaper by a cost model measured in bench/visibility.py). ``ibl`` (:class:`IBL`) picks
+    how the scene's ``environment`` lights it (the ``quality`` preset's rungs otherwise). :func:`explain` says
     what is simulated.
     """
     if not isinstance(scene, Scene):
