@@ -12,7 +12,7 @@ from .ambient import ambient_for
 from .brdf import brdf_for
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
-from .light_buffer import LightBuffers, UNDECIDED, OCCLUDED, light_buffer_occlusion
+from .light_buffer import LightBuffers, UNDECIDED, OCCLUDED, light_buffer_occlusion, triangle_is_clear
 from .lights import LightSample, light_sampler
 from .normal_mapping import perturb_normal
 from .raster import ray_triangle_intersection, triangle_corners, visible_triangle
@@ -182,6 +182,8 @@ def render_kernel(features):
         """Whether a surface blocks the segment from the hit to light ``light``: aimed from the
         offset origin at the light's position, so that the light buffer's cell holds it, or along
         a directional light; the BVH answers where the light buffer cannot."""
+        if triangle_is_clear(buffers, light, h.face):
+            return False
         origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
         direction = ls.to_light
         max_t = RAY_FAR
@@ -257,63 +259,64 @@ def render_kernel(features):
         env: EnvironmentData,
         dfg: wp.array2d(dtype=wp.vec2),
     ):
-        tid = wp.tid()
-        px = x0 + tid % tile_width
-        py = y0 + tid / tile_width
-        pixel_seed = seed + py * cam.width + px
-        radiance = wp.vec3(0.0)
-        normal_sum = wp.vec3(0.0)
-        hits = int(0)
-        depth = float(RAY_FAR)
-        for s in range(spp):
-            offset = wp.vec2(0.5, 0.5)
-            if wp.static(f.supersampling):
-                offset = multi_jittered_sample(s, grid_m, grid_n, pixel_seed)
-            d = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1])
-            origin = cam.eye
-            hits_before = hits
-            face, u, v = primary_hit(scene, vbuffer, py, px * spp + s, origin, d)
-            for _ in range(MAX_PASS_THROUGH):
-                if face < 0:
+        # one row per thread index: Warp's CPU code copies the kernel's arguments (structs of
+        # arrays, about a kilobyte) for every index, which per pixel cost ~10% of a frame
+        py = y0 + wp.tid()
+        for px in range(x0, x0 + tile_width):
+            pixel_seed = seed + py * cam.width + px
+            radiance = wp.vec3(0.0)
+            normal_sum = wp.vec3(0.0)
+            hits = int(0)
+            depth = float(RAY_FAR)
+            for s in range(spp):
+                offset = wp.vec2(0.5, 0.5)
+                if wp.static(f.supersampling):
+                    offset = multi_jittered_sample(s, grid_m, grid_n, pixel_seed)
+                d = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1])
+                origin = cam.eye
+                hits_before = hits
+                face, u, v = primary_hit(scene, vbuffer, py, px * spp + s, origin, d)
+                for _ in range(MAX_PASS_THROUGH):
+                    if face < 0:
+                        break
+                    h = surface_hit(scene, face, u, v, d)
+                    mat = scene.materials[h.material]
+                    uv = wp.vec2(0.0)
+                    if wp.static(textured):
+                        uv = interpolate(scene.uvs, h)
+                    if wp.static(f.pass_through):
+                        if is_culled(scene, h, mat, uv):
+                            origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
+                            q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
+                            face = wp.where(q.result, q.face, -1)
+                            u = q.u
+                            v = q.v
+                            continue
+                    n = wp.vec3(0.0)
+                    if wp.static(shaded or f.aovs):
+                        n = shading_normal(scene, h, mat, uv)
+                    radiance = radiance + shade(scene, maps, buffers, env, dfg, h, mat, uv, -d, n, pixel_seed, s)
+                    hits = hits + 1
+                    if wp.static(f.aovs):
+                        normal_sum = normal_sum + n
+                        depth = wp.min(depth, wp.length(h.p - cam.eye))
                     break
-                h = surface_hit(scene, face, u, v, d)
-                mat = scene.materials[h.material]
-                uv = wp.vec2(0.0)
-                if wp.static(textured):
-                    uv = interpolate(scene.uvs, h)
-                if wp.static(f.pass_through):
-                    if is_culled(scene, h, mat, uv):
-                        origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
-                        q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
-                        face = wp.where(q.result, q.face, -1)
-                        u = q.u
-                        v = q.v
-                        continue
-                n = wp.vec3(0.0)
-                if wp.static(shaded or f.aovs):
-                    n = shading_normal(scene, h, mat, uv)
-                radiance = radiance + shade(scene, maps, buffers, env, dfg, h, mat, uv, -d, n, pixel_seed, s)
-                hits = hits + 1
-                if wp.static(f.aovs):
-                    normal_sum = normal_sum + n
-                    depth = wp.min(depth, wp.length(h.p - cam.eye))
-                break
+                if wp.static(f.environment_background):
+                    if hits == hits_before:
+                        radiance = radiance + environment_radiance(env, d)
+            inv_spp = 1.0 / float(spp)
+            alpha = float(hits) * inv_spp
+            seen_behind = background * (1.0 - alpha)
             if wp.static(f.environment_background):
-                if hits == hits_before:
-                    radiance = radiance + environment_radiance(env, d)
-        inv_spp = 1.0 / float(spp)
-        alpha = float(hits) * inv_spp
-        seen_behind = background * (1.0 - alpha)
-        if wp.static(f.environment_background):
-            seen_behind = wp.vec3(0.0)
-        out_rgb[py, px] = clamp_to_float32_max(radiance * inv_spp + seen_behind)
-        out_alpha[py, px] = alpha
-        if wp.static(f.aovs):
-            if hits > 0:
-                out_depth[py, px] = depth
-                out_normal[py, px] = safe_normalize(normal_sum, wp.vec3(0.0))
-            else:
-                out_depth[py, px] = wp.inf
-                out_normal[py, px] = wp.vec3(0.0)
+                seen_behind = wp.vec3(0.0)
+            out_rgb[py, px] = clamp_to_float32_max(radiance * inv_spp + seen_behind)
+            out_alpha[py, px] = alpha
+            if wp.static(f.aovs):
+                if hits > 0:
+                    out_depth[py, px] = depth
+                    out_normal[py, px] = safe_normalize(normal_sum, wp.vec3(0.0))
+                else:
+                    out_depth[py, px] = wp.inf
+                    out_normal[py, px] = wp.vec3(0.0)
 
     return render_tile

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import warp as wp
 
-from . import validate
+from . import huge_pages, validate
 from .brdf import BRDF, brdf_for_quality
 from .camera import Camera
 from .errors import InputTypeError
@@ -160,11 +160,12 @@ def render(
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
-    out_rgb = wp.empty((height, width), dtype=wp.vec3, device="cpu")
-    out_alpha = wp.empty((height, width), dtype=float, device="cpu")
+    # fresh pages would fault one by one as the threads first write them
+    out_rgb = huge_pages.empty((height, width), wp.vec3)
+    out_alpha = huge_pages.empty((height, width), float)
     aov_shape = (height, width) if features.aovs else (1, 1)
-    out_depth = wp.empty(aov_shape, dtype=float, device="cpu")
-    out_normal = wp.empty(aov_shape, dtype=wp.vec3, device="cpu")
+    out_depth = huge_pages.empty(aov_shape, float)
+    out_normal = huge_pages.empty(aov_shape, wp.vec3)
     bg = wp.vec3(*background)
     seed = int(seed) % (2**31)
     maps = (build_shadow_maps(scene, gpu, shadow_mode(shadows)[1], threads) if features.shadows == "map"
@@ -180,7 +181,7 @@ def render(
 
     def launch(band):
         x0, y0, tile_width, tile_height = band
-        wp.launch(kernel, dim=tile_width * tile_height, device="cpu",
+        wp.launch(kernel, dim=tile_height, device="cpu",
                   inputs=[gpu.data, cam, spp, grid_m, grid_n, seed, x0, y0, tile_width, bg,
                           out_rgb, out_alpha, out_depth, out_normal, vbuffer, maps, buffers, env, dfg])
 
