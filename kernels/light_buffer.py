@@ -5,6 +5,12 @@ light it stays in the cell of its origin: it is tested against that cell's trian
 light than its origin only, with the ray caster's own ray-triangle test, and gets the verdict a
 BVH any-hit query would give at a fraction of the cost.
 
+Most shadow rays need not even that: where every triangle a cell lists nearer than a triangle T
+lies on or behind T's plane (seen from the light), no ray leaving T's lit side through that cell
+can meet one, so T's entry there is marked clear; a triangle clear in every cell its rays can
+land in (pinhole views) is marked clear of the light, and its rays are lit without a query. On a
+convex surface that is every triangle facing the light.
+
 Views are the shadow maps' (kernels/shadow_map.py): a cube of six for point lights and wide spot
 lights, one pinhole view for narrow spots, a parallel view behind the scene for directional lights,
 in the rasterizer's Projection (cells are its pixels). A ray whose cells cannot be named cheaply
@@ -46,6 +52,18 @@ MAX_QUERY_CELLS = wp.constant(4)
 # Nearness values are lowered by this fraction so that rounding never makes a triangle seem
 # farther from the light than a point on it.
 NEAR_SHRINK = wp.constant(1.0e-6)
+# A triangle is marked clear in a cell only if the light lies at least this angle (radians) off its
+# plane, far above the float32 rounding of a shadow ray's direction (~1e-7), and only after
+# comparing it with at most MAX_CLEAR_CHECKS nearer triangles of the cell.
+LIGHT_SIDE_MARGIN = wp.constant(wp.float64(1.0e-6))
+MAX_CLEAR_CHECKS = wp.constant(64)
+# A vertex counts as behind a triangle's plane up to this fraction of its distance from the plane's
+# origin vertex: the float64 rounding of the plane test (~1e-16) with room to spare, and far below
+# a shadow ray origin's offset off its surface (~1e-7 of the coordinates).
+PLANE_TOLERANCE = wp.constant(wp.float64(1.0e-12))
+# Bound, relative to a triangle's largest coordinate, on how far a shadow ray's origin may lie from
+# it: the hit point's error bound and the origin's offset (kernels/robust.py), ~1e-6.
+ORIGIN_DEVIATION = wp.constant(wp.float64(1.0e-5))
 
 
 @wp.struct
@@ -61,6 +79,13 @@ class LightBuffers:
     cell_start: wp.array(dtype=wp.int32)
     cell_faces: wp.array(dtype=wp.int32)
     cell_near: wp.array(dtype=float)
+    # 1 where the entry's triangle is clear in its cell: no triangle listed there can block a shadow
+    # ray leaving it towards the light (every one that may lie nearer is behind its plane)
+    cell_clear: wp.array(dtype=wp.uint8)
+    # per light and triangle (light * triangles + face): 1 where every shadow ray leaving the
+    # triangle lands in cells where it is clear, so that it needs no query (pinhole views only)
+    triangle_clear: wp.array(dtype=wp.uint8)
+    triangles: int
     resolution: int
 
 
@@ -205,6 +230,179 @@ def sort_cells(first_entry: int, cell_start: wp.array(dtype=wp.int32), cell_face
             cell_faces[j] = face
 
 
+@wp.func
+def towards_light(proj: Projection, p: wp.vec3d) -> wp.vec3d:
+    """A vector from p towards the view's light: to its eye, or against a parallel view's z axis."""
+    if proj.orthographic != 0:
+        return -wp.vec3d(proj.to_camera[2, 0], proj.to_camera[2, 1], proj.to_camera[2, 2])
+    return proj.eye - p
+
+
+@wp.func
+def farness(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d) -> float:
+    """An upper bound of the distance to the light (or of the depth in a parallel view) of every
+    shadow ray origin spawned on the triangle, comparable with cell_near."""
+    largest = wp.max(wp.max(wp.max(wp.abs(p0[0]), wp.abs(p0[1])), wp.max(wp.abs(p0[2]), wp.abs(p1[0]))),
+                     wp.max(wp.max(wp.abs(p1[1]), wp.abs(p1[2])), wp.max(wp.abs(p2[0]), wp.max(wp.abs(p2[1]),
+                                                                                                wp.abs(p2[2])))))
+    deviation = largest * ORIGIN_DEVIATION
+    far = wp.float64(0.0)
+    if proj.orthographic != 0:
+        axis = wp.vec3d(proj.to_camera[2, 0], proj.to_camera[2, 1], proj.to_camera[2, 2])
+        far = wp.max(wp.dot(axis, p0 - proj.eye), wp.max(wp.dot(axis, p1 - proj.eye), wp.dot(axis, p2 - proj.eye)))
+        far = far + deviation * wp.length(axis)
+    else:
+        far = wp.max(wp.length(p0 - proj.eye), wp.max(wp.length(p1 - proj.eye), wp.length(p2 - proj.eye))) + deviation
+    return float(far + wp.abs(far) * wp.float64(NEAR_SHRINK))
+
+
+@wp.func
+def behind_plane(n: wp.vec3d, light_side: wp.float64, origin: wp.vec3d, p: wp.vec3d) -> bool:
+    """Whether p lies on the plane through origin with normal n or on its side away from the light."""
+    offset = p - origin
+    return wp.dot(n, offset) * light_side <= PLANE_TOLERANCE * wp.length(n) * wp.length(offset)
+
+
+@wp.kernel
+def mark_clear_entries(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), proj: Projection,
+                       first_entry: int, cell_start: wp.array(dtype=wp.int32), cell_faces: wp.array(dtype=wp.int32),
+                       cell_near: wp.array(dtype=float), cell_clear: wp.array(dtype=wp.uint8)):
+    """Per entry of a cell of one view (sorted): whether its triangle is clear there. A shadow ray
+    leaves the triangle's plane towards the light and stays on the light's side of it (the light
+    lies LIGHT_SIDE_MARGIN off it); it can meet only triangles listed in its cell that lie nearer
+    to the light than its origin; if all of those lie on or behind the plane, it meets none."""
+    e = first_entry + wp.tid()
+    begin = cell_start[e]
+    end = cell_start[e + 1]
+    for k in range(begin, end):
+        cell_clear[k] = wp.uint8(0)
+        c = triangle_corners(indices, cell_faces[k])
+        p0 = to_double(positions[c[0]])
+        p1 = to_double(positions[c[1]])
+        p2 = to_double(positions[c[2]])
+        n = wp.cross(p1 - p0, p2 - p0)
+        towards = towards_light(proj, p0)
+        light_side = wp.dot(n, towards)
+        if wp.abs(light_side) <= LIGHT_SIDE_MARGIN * wp.length(n) * wp.length(towards):
+            continue  # degenerate, or the light (nearly) in its plane
+        light_side = wp.sign(light_side)
+        far = farness(proj, p0, p1, p2)
+        clear = bool(True)
+        checked = int(0)
+        for j in range(begin, end):
+            if cell_near[j] >= far or not clear:
+                break
+            if j != k:
+                checked += 1
+                a = triangle_corners(indices, cell_faces[j])
+                clear = (checked <= MAX_CLEAR_CHECKS and behind_plane(n, light_side, p0, to_double(positions[a[0]]))
+                         and behind_plane(n, light_side, p0, to_double(positions[a[1]]))
+                         and behind_plane(n, light_side, p0, to_double(positions[a[2]])))
+        if clear:
+            cell_clear[k] = wp.uint8(1)
+
+
+@wp.func
+def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face: int, p0: wp.vec3, p1: wp.vec3,
+                              p2: wp.vec3) -> bool:
+    """Whether every shadow ray leaving the triangle that picks pinhole view ``view`` lands in cells
+    where it is clear (true for a cube face it lies wholly outside of: its rays pick another). A ray from it leaves within
+    ORIGIN_DEVIATION of it and runs towards the light, missing it by its direction's rounding: seen
+    from the light it lies within an angle `spread` of the triangle, which the cells spread times
+    cells-per-radian around the triangle's rectangle must stay within: the same cells, inside the view."""
+    proj = buffers.views[view]
+    c0 = camera_coordinates(proj, p0)
+    c1 = camera_coordinates(proj, p1)
+    c2 = camera_coordinates(proj, p2)
+    zero = wp.float64(0.0)
+    if c0[2] <= zero and c1[2] <= zero and c2[2] <= zero:
+        return cube
+    if c0[2] <= zero or c1[2] <= zero or c2[2] <= zero:
+        return False
+    d0 = to_double(p0)
+    d1 = to_double(p1)
+    d2 = to_double(p2)
+    near = point_triangle_distance(proj.eye, d0, d1, d2)
+    largest = wp.max(largest_coordinate(d0), wp.max(largest_coordinate(d1), largest_coordinate(d2)))
+    magnitude = wp.max(largest, largest_coordinate(proj.eye))
+    if near <= zero:
+        return False
+    spread = (largest * ORIGIN_DEVIATION + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (near + magnitude)) / near
+    # screen units per radian: half-size over the tangent of the half-angle times 1 + tan^2 of
+    # the angle off the axis, at most 1 + tan_x^2 + tan_y^2 at the view's corners
+    tan_x = wp.float64(1.0) / wp.length(wp.vec3d(proj.to_camera[0, 0], proj.to_camera[0, 1], proj.to_camera[0, 2]))
+    tan_y = wp.float64(1.0) / wp.length(wp.vec3d(proj.to_camera[1, 0], proj.to_camera[1, 1], proj.to_camera[1, 2]))
+    stretch = wp.float64(1.0) + tan_x * tan_x + tan_y * tan_y
+    spread_x = spread * proj.half_width / tan_x * stretch
+    spread_y = spread * proj.half_height / tan_y * stretch
+    x0 = screen_x(proj, c0)
+    x1 = screen_x(proj, c1)
+    x2 = screen_x(proj, c2)
+    y0 = screen_y(proj, c0)
+    y1 = screen_y(proj, c1)
+    y2 = screen_y(proj, c2)
+    x_min = wp.min(x0, wp.min(x1, x2))
+    x_max = wp.max(x0, wp.max(x1, x2))
+    y_min = wp.min(y0, wp.min(y1, y2))
+    y_max = wp.max(y0, wp.max(y1, y2))
+    r = cell_rect(proj, x_min, y_min, x_max, y_max)
+    x_min = x_min - CELL_MARGIN - spread_x
+    y_min = y_min - CELL_MARGIN - spread_y
+    x_max = x_max + CELL_MARGIN + spread_x
+    y_max = y_max + CELL_MARGIN + spread_y
+    if x_max < zero or y_max < zero or x_min >= wp.float64(proj.width) or y_min >= wp.float64(proj.height):
+        return cube
+    # else the spread rectangle lies inside the view, in the same cells
+    if x_min < zero or y_min < zero or x_max >= wp.float64(proj.width) or y_max >= wp.float64(proj.height):
+        return False
+    if (int(wp.floor(x_min)) != r[0] or int(wp.floor(y_min)) != r[1] or int(wp.floor(x_max)) != r[2]
+            or int(wp.floor(y_max)) != r[3]):
+        return False
+    for y in range(r[1], r[3] + 1):
+        for x in range(r[0], r[2] + 1):
+            e = view * buffers.resolution * buffers.resolution + y * buffers.resolution + x
+            found = bool(False)
+            for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
+                if buffers.cell_faces[k] == face:
+                    found = buffers.cell_clear[k] != wp.uint8(0)
+                    break
+            if not found:
+                return False
+    return True
+
+
+@wp.func
+def largest_coordinate(p: wp.vec3d) -> wp.float64:
+    return wp.max(wp.abs(p[0]), wp.max(wp.abs(p[1]), wp.abs(p[2])))
+
+
+@wp.kernel
+def mark_clear_triangles(buffers: LightBuffers, light: int, positions: wp.array(dtype=wp.vec3),
+                         indices: wp.array(dtype=wp.int32), triangles: int, triangle_clear: wp.array(dtype=wp.uint8)):
+    """Per triangle, whether every shadow ray leaving it towards ``light`` (pinhole views) is lit
+    without a query: it is clear wherever its rays may land, in every view."""
+    start = wp.tid() * ITEMS_PER_THREAD
+    span = buffers.light_views[light]
+    for face in range(start, wp.min(start + ITEMS_PER_THREAD, triangles)):
+        c = triangle_corners(indices, face)
+        clear = bool(True)
+        for v in range(span[0], span[0] + span[1]):
+            if clear:
+                clear = pinhole_triangle_is_clear(buffers, v, span[1] == CUBE_FACES, face, positions[c[0]],
+                                                  positions[c[1]], positions[c[2]])
+        triangle_clear[light * triangles + face] = wp.where(clear, wp.uint8(1), wp.uint8(0))
+
+
+@wp.func
+def triangle_is_clear(buffers: LightBuffers, light: int, face: int) -> bool:
+    """Whether a shadow ray leaving triangle ``face`` towards ``light`` meets nothing, known
+    without a query (mark_clear_triangles)."""
+    i = light * buffers.triangles + face
+    if light >= buffers.light_views.shape[0] or i >= buffers.triangle_clear.shape[0]:
+        return False
+    return buffers.triangle_clear[i] != wp.uint8(0)
+
+
 @wp.kernel
 def nearest_surface_distance(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
     """Distance from each point to the nearest triangle of ``mesh`` (RAY_FAR for an empty one)."""
@@ -227,6 +425,8 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
     tested against it)."""
     if light >= buffers.light_views.shape[0]:
         return UNDECIDED  # buffers built for fewer lights (no_light_buffers): the BVH answers
+    if triangle_is_clear(buffers, light, origin_face):
+        return LIT
     span = buffers.light_views[light]
     if span[1] == 0:
         return UNDECIDED
@@ -272,6 +472,16 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
         return UNDECIDED
     if (r[2] - r[0] + 1) * (r[3] - r[1] + 1) > MAX_QUERY_CELLS:
         return UNDECIDED
+    if r[0] == r[2] and r[1] == r[3]:
+        # within one cell: a ray leaving a triangle that is clear there meets nothing
+        e = view * buffers.resolution * buffers.resolution + r[1] * buffers.resolution + r[0]
+        for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
+            if wp.float64(buffers.cell_near[k]) > reach:
+                break
+            if buffers.cell_faces[k] == origin_face:
+                if buffers.cell_clear[k] != wp.uint8(0):
+                    return LIT
+                break
     for y in range(r[1], r[3] + 1):
         for x in range(r[0], r[2] + 1):
             e = view * buffers.resolution * buffers.resolution + y * buffers.resolution + x

@@ -1,7 +1,9 @@
 """Light buffers, the shadow rays' acceleration structure (kernels/light_buffer.py): per light, the
 triangles seen through each cell of a grid of directions, nearest first. Built on every core from
 the same views as the shadow maps and kept on the scene while its geometry and the lights'
-placement stay the same; a shadow ray tests a handful of triangles instead of walking the BVH."""
+placement stay the same; a shadow ray tests a handful of triangles instead of walking the BVH, or
+none from a triangle marked clear of the light (nothing nearer to the light in its cells lies in
+front of its plane)."""
 
 from __future__ import annotations
 
@@ -37,7 +39,8 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
         return cached[2]
     threads = thread_count(threads)
-    for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.sort_cells):
+    for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.sort_cells, lb.mark_clear_entries,
+                   lb.mark_clear_triangles):
         load_for_cpu(kernel)
     positions, indices = gpu.data.positions, gpu.data.indices
     triangles = len(indices) // 3
@@ -86,11 +89,14 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     entries = max(int(start[-1]), 1)
     cell_faces = wp.empty(entries, dtype=wp.int32, device="cpu")
     cell_near = wp.empty(entries, dtype=float, device="cpu")
+    cell_clear = wp.zeros(entries, dtype=wp.uint8, device="cpu")
 
     def fill_and_sort(v):
         wp.launch(lb.fill_cells, dim=launch_threads(triangles), device="cpu",
                   inputs=[positions, indices, views[v], v * cells, triangles, cursors, cell_faces, cell_near])
         wp.launch(lb.sort_cells, dim=cells, device="cpu", inputs=[v * cells, cell_start, cell_faces, cell_near])
+        wp.launch(lb.mark_clear_entries, dim=cells, device="cpu",
+                  inputs=[positions, indices, views[v], v * cells, cell_start, cell_faces, cell_near, cell_clear])
 
     run_all(fill_and_sort, kept, threads)
     buffers = lb.LightBuffers()
@@ -98,7 +104,17 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     buffers.light_views = wp.array(spans if spans else [(0, 0)], dtype=wp.vec2i, device="cpu")
     buffers.clearance = wp.array([min(c, 3e38) for c in clearances] or [0.0], dtype=float, device="cpu")
     buffers.cell_start, buffers.cell_faces, buffers.cell_near = cell_start, cell_faces, cell_near
+    buffers.cell_clear = cell_clear
+    buffers.triangle_clear = wp.zeros(max(len(scene.lights) * triangles, 1), dtype=wp.uint8, device="cpu")
+    buffers.triangles = triangles
     buffers.resolution = RESOLUTION
+    pinhole_lights = [k for k, (first, n) in enumerate(spans) if n and not views[first].orthographic]
+
+    def mark(light):
+        wp.launch(lb.mark_clear_triangles, dim=launch_threads(triangles), device="cpu",
+                  inputs=[buffers, light, positions, indices, triangles, buffers.triangle_clear])
+
+    run_all(mark, pinhole_lights, threads)
     scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers)
     return buffers
 
@@ -127,5 +143,8 @@ def no_light_buffers() -> lb.LightBuffers:
     buffers.cell_start = wp.zeros(2, dtype=wp.int32, device="cpu")
     buffers.cell_faces = wp.zeros(1, dtype=wp.int32, device="cpu")
     buffers.cell_near = wp.zeros(1, dtype=float, device="cpu")
+    buffers.cell_clear = wp.zeros(1, dtype=wp.uint8, device="cpu")
+    buffers.triangle_clear = wp.zeros(1, dtype=wp.uint8, device="cpu")
+    buffers.triangles = 0
     buffers.resolution = 1
     return buffers

@@ -117,6 +117,35 @@ def test_light_buffer_verdicts_are_the_bvhs(light, mesh, offset):
     assert (verdict[decided] != bvh[decided]).sum() <= 1e-4 * len(verdict)
 
 
+@pytest.mark.parametrize("light", ["point", "point inside the cube of the mesh", "narrow spot", "wide spot"])
+@pytest.mark.parametrize("mesh", ["icosphere", "bunny"])
+def test_triangles_marked_clear_are_never_shadowed(light, mesh):
+    """A triangle marked clear of a light skips its shadow rays' queries: the BVH finds no occluder
+    for rays from anywhere on it, and a convex sphere's lit side is mostly marked."""
+    if mesh == "bunny" and not ASSETS.exists():
+        pytest.skip("shared/assets is not beside the repository")
+    scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), LIGHTS[light])
+    gpu = upload(scene)
+    buffers = build(scene, gpu)
+    clear = np.flatnonzero(buffers.triangle_clear.numpy()[: buffers.triangles])
+    if mesh == "icosphere" and light == "point":
+        assert len(clear) >= 0.25 * buffers.triangles
+    if len(clear) == 0:
+        return
+    rng = np.random.default_rng(2)
+    n = 100_000
+    faces = rng.choice(clear, n)
+    uv = rng.random((n, 2))
+    uv = np.where(uv.sum(axis=1, keepdims=True) > 1.0, 1.0 - uv, uv)
+    # the corners and edges too, where neighbours meet
+    uv[: n // 10] = rng.choice([[1.0, 0.0], [0.0, 1.0], [0.0, 0.0], [0.5, 0.5], [0.0, 0.5], [0.5, 0.0]], n // 10)
+    out = wp.empty(n, dtype=wp.vec3i)
+    wp.launch(verdicts, dim=n, inputs=[gpu.data, buffers, 0, wp.array(faces, dtype=int), wp.array(uv, dtype=wp.vec2), out])
+    verdict, bvh, reached = out.numpy().T
+    assert np.all(verdict[reached == 1] == 0)
+    assert np.all(bvh[reached == 1] == 0)
+
+
 def test_no_light_buffer_for_a_light_on_a_surface():
     scene = scene_with_floor(icosphere(3), pw.PointLight(position=(0.0, 1.0, 0.0), intensity=5.0))
     buffers = build(scene, upload(scene))
