@@ -207,12 +207,11 @@ def fill_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.in
                     cursors[e] = slot + 1
 
 
-@wp.kernel
-def sort_cells(first_entry: int, cell_start: wp.array(dtype=wp.int32), cell_faces: wp.array(dtype=wp.int32),
-               cell_near: wp.array(dtype=float)):
-    """Each cell's list in ascending nearness: Shell sort with gaps shrinking by 2.25 (Ciura
-    2001's ratio), in place, fast on the usual short lists and not quadratic on long ones."""
-    e = first_entry + wp.tid()
+@wp.func
+def sort_cell(e: int, cell_start: wp.array(dtype=wp.int32), cell_faces: wp.array(dtype=wp.int32),
+              cell_near: wp.array(dtype=float)):
+    """Cell e's list in ascending nearness: Shell sort with gaps shrinking by 2.25 (Ciura 2001's
+    ratio), in place, fast on the usual short lists and not quadratic on long ones."""
     begin = cell_start[e]
     n = cell_start[e + 1] - begin
     gap = n
@@ -257,21 +256,24 @@ def farness(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d) -> float
 
 
 @wp.func
-def behind_plane(n: wp.vec3d, light_side: wp.float64, origin: wp.vec3d, p: wp.vec3d) -> bool:
-    """Whether p lies on the plane through origin with normal n or on its side away from the light."""
+def behind_plane(n: wp.vec3d, n_sq: wp.float64, light_side: wp.float64, origin: wp.vec3d, p: wp.vec3d) -> bool:
+    """Whether p lies on the plane through origin with normal n (n_sq = |n|^2) or on its side away
+    from the light."""
     offset = p - origin
-    return wp.dot(n, offset) * light_side <= PLANE_TOLERANCE * wp.length(n) * wp.length(offset)
+    height = wp.dot(n, offset) * light_side
+    if height <= wp.float64(0.0):
+        return True
+    return height * height <= PLANE_TOLERANCE * PLANE_TOLERANCE * n_sq * wp.dot(offset, offset)
 
 
-@wp.kernel
+@wp.func
 def mark_clear_entries(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), proj: Projection,
-                       first_entry: int, cell_start: wp.array(dtype=wp.int32), cell_faces: wp.array(dtype=wp.int32),
+                       e: int, cell_start: wp.array(dtype=wp.int32), cell_faces: wp.array(dtype=wp.int32),
                        cell_near: wp.array(dtype=float), cell_clear: wp.array(dtype=wp.uint8)):
-    """Per entry of a cell of one view (sorted): whether its triangle is clear there. A shadow ray
-    leaves the triangle's plane towards the light and stays on the light's side of it (the light
-    lies LIGHT_SIDE_MARGIN off it); it can meet only triangles listed in its cell that lie nearer
-    to the light than its origin; if all of those lie on or behind the plane, it meets none."""
-    e = first_entry + wp.tid()
+    """Per entry of (sorted) cell e: whether its triangle is clear there. A shadow ray leaves the
+    triangle's plane towards the light and stays on the light's side of it (the light lies
+    LIGHT_SIDE_MARGIN off it); it can meet only triangles listed in its cell that lie nearer to the
+    light than its origin; if all of those lie on or behind the plane, it meets none."""
     begin = cell_start[e]
     end = cell_start[e + 1]
     for k in range(begin, end):
@@ -286,6 +288,7 @@ def mark_clear_entries(positions: wp.array(dtype=wp.vec3), indices: wp.array(dty
         if wp.abs(light_side) <= LIGHT_SIDE_MARGIN * wp.length(n) * wp.length(towards):
             continue  # degenerate, or the light (nearly) in its plane
         light_side = wp.sign(light_side)
+        n_sq = wp.dot(n, n)
         far = farness(proj, p0, p1, p2)
         clear = bool(True)
         checked = int(0)
@@ -295,11 +298,24 @@ def mark_clear_entries(positions: wp.array(dtype=wp.vec3), indices: wp.array(dty
             if j != k:
                 checked += 1
                 a = triangle_corners(indices, cell_faces[j])
-                clear = (checked <= MAX_CLEAR_CHECKS and behind_plane(n, light_side, p0, to_double(positions[a[0]]))
-                         and behind_plane(n, light_side, p0, to_double(positions[a[1]]))
-                         and behind_plane(n, light_side, p0, to_double(positions[a[2]])))
+                clear = checked <= MAX_CLEAR_CHECKS
+                for corner in range(3):
+                    if clear:
+                        clear = behind_plane(n, n_sq, light_side, p0, to_double(positions[a[corner]]))
         if clear:
             cell_clear[k] = wp.uint8(1)
+
+
+@wp.kernel
+def finish_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), proj: Projection,
+                 first_entry: int, cell_start: wp.array(dtype=wp.int32), cell_faces: wp.array(dtype=wp.int32),
+                 cell_near: wp.array(dtype=float), cell_clear: wp.array(dtype=wp.uint8)):
+    """Each filled cell of one row of one view sorted, then its clear entries marked (a row per
+    launch index: Warp copies a kernel's arguments for every index)."""
+    row = first_entry + wp.tid() * proj.width
+    for e in range(row, row + proj.width):
+        sort_cell(e, cell_start, cell_faces, cell_near)
+        mark_clear_entries(positions, indices, proj, e, cell_start, cell_faces, cell_near, cell_clear)
 
 
 @wp.func

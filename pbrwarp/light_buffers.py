@@ -39,7 +39,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
         return cached[2]
     threads = thread_count(threads)
-    for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.sort_cells, lb.mark_clear_entries,
+    for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.finish_cells,
                    lb.mark_clear_triangles):
         load_for_cpu(kernel)
     positions, indices = gpu.data.positions, gpu.data.indices
@@ -91,14 +91,13 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     cell_near = wp.empty(entries, dtype=float, device="cpu")
     cell_clear = wp.zeros(entries, dtype=wp.uint8, device="cpu")
 
-    def fill_and_sort(v):
+    def fill_and_finish(v):
         wp.launch(lb.fill_cells, dim=launch_threads(triangles), device="cpu",
                   inputs=[positions, indices, views[v], v * cells, triangles, cursors, cell_faces, cell_near])
-        wp.launch(lb.sort_cells, dim=cells, device="cpu", inputs=[v * cells, cell_start, cell_faces, cell_near])
-        wp.launch(lb.mark_clear_entries, dim=cells, device="cpu",
+        wp.launch(lb.finish_cells, dim=RESOLUTION, device="cpu",
                   inputs=[positions, indices, views[v], v * cells, cell_start, cell_faces, cell_near, cell_clear])
 
-    run_all(fill_and_sort, kept, threads)
+    run_all(fill_and_finish, kept, threads)
     buffers = lb.LightBuffers()
     buffers.views = wp.array(views if views else [lb.Projection()], dtype=lb.Projection, device="cpu")
     buffers.light_views = wp.array(spans if spans else [(0, 0)], dtype=wp.vec2i, device="cpu")
