@@ -238,13 +238,16 @@ def towards_light(proj: Projection, p: wp.vec3d) -> wp.vec3d:
 
 
 @wp.func
+def largest_coordinate(p: wp.vec3d) -> wp.float64:
+    return wp.max(wp.abs(p[0]), wp.max(wp.abs(p[1]), wp.abs(p[2])))
+
+
+@wp.func
 def farness(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d) -> float:
     """An upper bound of the distance to the light (or of the depth in a parallel view) of every
     shadow ray origin spawned on the triangle, comparable with cell_near."""
-    largest = wp.max(wp.max(wp.max(wp.abs(p0[0]), wp.abs(p0[1])), wp.max(wp.abs(p0[2]), wp.abs(p1[0]))),
-                     wp.max(wp.max(wp.abs(p1[1]), wp.abs(p1[2])), wp.max(wp.abs(p2[0]), wp.max(wp.abs(p2[1]),
-                                                                                                wp.abs(p2[2])))))
-    deviation = largest * ORIGIN_DEVIATION
+    deviation = ORIGIN_DEVIATION * wp.max(largest_coordinate(p0), wp.max(largest_coordinate(p1),
+                                                                        largest_coordinate(p2)))
     far = wp.float64(0.0)
     if proj.orthographic != 0:
         axis = wp.vec3d(proj.to_camera[2, 0], proj.to_camera[2, 1], proj.to_camera[2, 2])
@@ -322,10 +325,11 @@ def finish_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.
 def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face: int, p0: wp.vec3, p1: wp.vec3,
                               p2: wp.vec3) -> bool:
     """Whether every shadow ray leaving the triangle that picks pinhole view ``view`` lands in cells
-    where it is clear (true for a cube face it lies wholly outside of: its rays pick another). A ray from it leaves within
-    ORIGIN_DEVIATION of it and runs towards the light, missing it by its direction's rounding: seen
-    from the light it lies within an angle `spread` of the triangle, which the cells spread times
-    cells-per-radian around the triangle's rectangle must stay within: the same cells, inside the view."""
+    where it is clear (true for a cube face it lies wholly outside of: its rays pick another). A
+    ray leaves within ORIGIN_DEVIATION of the triangle and runs towards the light, missing it by
+    its direction's rounding: seen from the light it lies within an angle `spread` of the
+    triangle, and the triangle's rectangle grown by spread times the cells per radian must stay
+    in the same cells, inside the view."""
     proj = buffers.views[view]
     c0 = camera_coordinates(proj, p0)
     c1 = camera_coordinates(proj, p1)
@@ -341,9 +345,11 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
     near = point_triangle_distance(proj.eye, d0, d1, d2)
     largest = wp.max(largest_coordinate(d0), wp.max(largest_coordinate(d1), largest_coordinate(d2)))
     magnitude = wp.max(largest, largest_coordinate(proj.eye))
-    if near <= zero:
+    # origins lie at least this far from the light
+    nearest = near - largest * ORIGIN_DEVIATION
+    if nearest <= zero:
         return False
-    spread = (largest * ORIGIN_DEVIATION + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (near + magnitude)) / near
+    spread = (largest * ORIGIN_DEVIATION + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (near + magnitude)) / nearest
     # screen units per radian: half-size over the tangent of the half-angle times 1 + tan^2 of
     # the angle off the axis, at most 1 + tan_x^2 + tan_y^2 at the view's corners
     tan_x = wp.float64(1.0) / wp.length(wp.vec3d(proj.to_camera[0, 0], proj.to_camera[0, 1], proj.to_camera[0, 2]))
@@ -385,11 +391,6 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
             if not found:
                 return False
     return True
-
-
-@wp.func
-def largest_coordinate(p: wp.vec3d) -> wp.float64:
-    return wp.max(wp.abs(p[0]), wp.max(wp.abs(p[1]), wp.abs(p[2])))
 
 
 @wp.kernel
