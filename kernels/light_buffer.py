@@ -254,7 +254,10 @@ def farness(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d) -> float
         far = wp.max(wp.dot(axis, p0 - proj.eye), wp.max(wp.dot(axis, p1 - proj.eye), wp.dot(axis, p2 - proj.eye)))
         far = far + deviation * wp.length(axis)
     else:
-        far = wp.max(wp.length(p0 - proj.eye), wp.max(wp.length(p1 - proj.eye), wp.length(p2 - proj.eye))) + deviation
+        d0 = p0 - proj.eye
+        d1 = p1 - proj.eye
+        d2 = p2 - proj.eye
+        far = wp.sqrt(wp.max(wp.dot(d0, d0), wp.max(wp.dot(d1, d1), wp.dot(d2, d2)))) + deviation
     return float(far + wp.abs(far) * wp.float64(NEAR_SHRINK))
 
 
@@ -286,12 +289,12 @@ def mark_clear_entries(positions: wp.array(dtype=wp.vec3), indices: wp.array(dty
         p1 = to_double(positions[c[1]])
         p2 = to_double(positions[c[2]])
         n = wp.cross(p1 - p0, p2 - p0)
+        n_sq = wp.dot(n, n)
         towards = towards_light(proj, p0)
         light_side = wp.dot(n, towards)
-        if wp.abs(light_side) <= LIGHT_SIDE_MARGIN * wp.length(n) * wp.length(towards):
+        if light_side * light_side <= LIGHT_SIDE_MARGIN * LIGHT_SIDE_MARGIN * n_sq * wp.dot(towards, towards):
             continue  # degenerate, or the light (nearly) in its plane
         light_side = wp.sign(light_side)
-        n_sq = wp.dot(n, n)
         far = farness(proj, p0, p1, p2)
         clear = bool(True)
         checked = int(0)
@@ -395,12 +398,13 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
 
 @wp.kernel
 def mark_clear_triangles(buffers: LightBuffers, light: int, positions: wp.array(dtype=wp.vec3),
-                         indices: wp.array(dtype=wp.int32), triangles: int, triangle_clear: wp.array(dtype=wp.uint8)):
-    """Per triangle, whether every shadow ray leaving it towards ``light`` (pinhole views) is lit
-    without a query: it is clear wherever its rays may land, in every view."""
-    start = wp.tid() * ITEMS_PER_THREAD
+                         indices: wp.array(dtype=wp.int32), first: int, end: int, triangles: int,
+                         triangle_clear: wp.array(dtype=wp.uint8)):
+    """Per triangle of [first, end), whether every shadow ray leaving it towards ``light`` (pinhole
+    views) is lit without a query: it is clear wherever its rays may land, in every view."""
+    start = first + wp.tid() * ITEMS_PER_THREAD
     span = buffers.light_views[light]
-    for face in range(start, wp.min(start + ITEMS_PER_THREAD, triangles)):
+    for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
         c = triangle_corners(indices, face)
         clear = bool(True)
         for v in range(span[0], span[0] + span[1]):

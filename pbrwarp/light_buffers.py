@@ -28,6 +28,8 @@ MIN_CLEARANCE_RADII = 1.0e-4
 # Budget of a light's list entries: this many per triangle plus this many per cell of its views.
 MAX_ENTRIES_PER_TRIANGLE = 16
 MAX_ENTRIES_PER_CELL = 8
+# Work items per thread of the stages that split views and lights into blocks.
+WORK_BLOCKS_PER_THREAD = 4
 # Fraction taken off the float32 distance from a light to the nearest surface.
 CLEARANCE_MARGIN = 1.0e-3
 
@@ -91,13 +93,23 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     cell_near = wp.empty(entries, dtype=float, device="cpu")
     cell_clear = wp.zeros(entries, dtype=wp.uint8, device="cpu")
 
-    def fill_and_finish(v):
+    def fill(v):
         wp.launch(lb.fill_cells, dim=launch_threads(triangles), device="cpu",
                   inputs=[positions, indices, views[v], v * cells, triangles, cursors, cell_faces, cell_near])
-        wp.launch(lb.finish_cells, dim=RESOLUTION, device="cpu",
-                  inputs=[positions, indices, views[v], v * cells, cell_start, cell_faces, cell_near, cell_clear])
 
-    run_all(fill_and_finish, kept, threads)
+    run_all(fill, kept, threads)
+    # sorting lists and marking entries, and marking triangles, in blocks that spread every
+    # view's and every light's work over the threads (the mesh often fills one or two faces)
+    blocks = WORK_BLOCKS_PER_THREAD * threads
+    rows = -(-RESOLUTION // blocks)
+
+    def finish(job):
+        v, row = job
+        wp.launch(lb.finish_cells, dim=min(rows, RESOLUTION - row), device="cpu",
+                  inputs=[positions, indices, views[v], v * cells + row * RESOLUTION, cell_start, cell_faces,
+                          cell_near, cell_clear])
+
+    run_all(finish, [(v, row) for v in kept for row in range(0, RESOLUTION, rows)], threads)
     buffers = lb.LightBuffers()
     buffers.views = wp.array(views if views else [lb.Projection()], dtype=lb.Projection, device="cpu")
     buffers.light_views = wp.array(spans if spans else [(0, 0)], dtype=wp.vec2i, device="cpu")
@@ -108,12 +120,16 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     buffers.triangles = triangles
     buffers.resolution = RESOLUTION
     pinhole_lights = [k for k, (first, n) in enumerate(spans) if n and not views[first].orthographic]
+    per_block = -(-triangles // blocks)
 
-    def mark(light):
-        wp.launch(lb.mark_clear_triangles, dim=launch_threads(triangles), device="cpu",
-                  inputs=[buffers, light, positions, indices, triangles, buffers.triangle_clear])
+    def mark(job):
+        light, first = job
+        count = min(per_block, triangles - first)
+        wp.launch(lb.mark_clear_triangles, dim=launch_threads(count), device="cpu",
+                  inputs=[buffers, light, positions, indices, first, first + count, triangles,
+                          buffers.triangle_clear])
 
-    run_all(mark, pinhole_lights, threads)
+    run_all(mark, [(light, first) for light in pinhole_lights for first in range(0, triangles, per_block)], threads)
     scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers)
     return buffers
 
