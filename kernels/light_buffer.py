@@ -438,19 +438,19 @@ def nearest_surface_distance(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), o
 @wp.func
 def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp.vec3,
                            positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), origin: wp.vec3,
-                           direction: wp.vec3, max_t: float, origin_face: int) -> int:
-    """LIT, OCCLUDED or UNDECIDED (ask the BVH) for the shadow ray origin + t direction, 0 <= t <
-    max_t, towards light ``light``: aimed at the light's position (point and spot lights) or
-    along its reversed direction (directional lights). The ray leaves triangle ``origin_face``
-    from an origin offset off its plane towards the light, so it cannot meet it (and is not
-    tested against it)."""
+                           direction: wp.vec3, max_t: float, origin_face: int):
+    """(verdict, blocker): LIT, OCCLUDED or UNDECIDED (ask the BVH) for the shadow ray origin + t
+    direction, 0 <= t < max_t, towards light ``light``: aimed at the light's position (point and
+    spot lights) or along its reversed direction (directional lights); blocker is the triangle
+    found in its way (OCCLUDED), else -1. The ray leaves triangle ``origin_face`` from an origin
+    offset off its plane towards the light, so it cannot meet it (and is not tested against it)."""
     if light >= buffers.light_views.shape[0]:
-        return UNDECIDED  # buffers built for fewer lights (no_light_buffers): the BVH answers
+        return UNDECIDED, -1  # buffers built for fewer lights (no_light_buffers): the BVH answers
     if triangle_is_clear(buffers, light, origin_face):
-        return LIT
+        return LIT, -1
     span = buffers.light_views[light]
     if span[1] == 0:
-        return UNDECIDED
+        return UNDECIDED, -1
     view = span[0]
     if span[1] == CUBE_FACES:
         view = span[0] + cube_face(origin - light_position)
@@ -473,26 +473,26 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
         reach = wp.float64(distance) * (wp.float64(1.0) + wp.float64(2.0) * slack)
         t_end = reach * (wp.float64(1.0) + slack) - wp.float64(buffers.clearance[light]) * (wp.float64(1.0) - slack)
         if t_end >= reach:
-            return UNDECIDED  # the rounding may carry the ray beyond the clearance
+            return UNDECIDED, -1  # the rounding may carry the ray beyond the clearance
     t_end = wp.clamp(t_end, wp.float64(0.0), wp.float64(max_t))
     end = to_double(origin) + to_double(direction) * t_end
     ce = proj.to_camera * (end - proj.eye)
     if proj.orthographic == 0 and (co[2] <= wp.float64(0.0) or ce[2] <= wp.float64(0.0)):
-        return UNDECIDED
+        return UNDECIDED, -1
     xo = screen_x(proj, co)
     yo = screen_y(proj, co)
     xe = screen_x(proj, ce)
     ye = screen_y(proj, ce)
     r = cell_rect(proj, wp.min(xo, xe), wp.min(yo, ye), wp.max(xo, xe), wp.max(yo, ye))
     if r[0] > r[2]:
-        return UNDECIDED
+        return UNDECIDED, -1
     if wp.min(xo, xe) - CELL_MARGIN < wp.float64(0.0) or wp.min(yo, ye) - CELL_MARGIN < wp.float64(0.0):
-        return UNDECIDED  # partly outside the view
+        return UNDECIDED, -1  # partly outside the view
     if (wp.max(xo, xe) + CELL_MARGIN >= wp.float64(proj.width)
             or wp.max(yo, ye) + CELL_MARGIN >= wp.float64(proj.height)):
-        return UNDECIDED
+        return UNDECIDED, -1
     if (r[2] - r[0] + 1) * (r[3] - r[1] + 1) > MAX_QUERY_CELLS:
-        return UNDECIDED
+        return UNDECIDED, -1
     if r[0] == r[2] and r[1] == r[3]:
         # within one cell: a ray leaving a triangle that is clear there meets nothing
         e = view * buffers.resolution * buffers.resolution + r[1] * buffers.resolution + r[0]
@@ -501,7 +501,7 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
                 break
             if buffers.cell_faces[k] == origin_face:
                 if buffers.cell_clear[k] != wp.uint8(0):
-                    return LIT
+                    return LIT, -1
                 break
     for y in range(r[1], r[3] + 1):
         for x in range(r[0], r[2] + 1):
@@ -516,5 +516,5 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
                 hit, t, u, v = ray_triangle_intersection(origin, direction, positions[c[0]], positions[c[1]],
                                                          positions[c[2]])
                 if hit and t < max_t:
-                    return OCCLUDED
-    return LIT
+                    return OCCLUDED, face
+    return LIT, -1

@@ -112,15 +112,27 @@ def render_kernel(features):
     shaded = lit or bool(ibl)
 
     @wp.func
-    def is_culled(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
-        if h.back_face == 1 and mat.double_sided == 0:
-            return True
+    def is_cut_out(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
+        """Whether an alpha-masked material is cut out at the hit (glTF alphaMode MASK)."""
         if mat.alpha_mask == 1:
             alpha = mat.base_color[3] * interpolate(scene.colors, h)[3]
             if wp.static(f.base_color_texture):
                 alpha = alpha * texture_or_one(scene, mat.base_color_texture, uv)[3]
             return alpha < mat.alpha_cutoff
         return False
+
+    @wp.func
+    def is_culled(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
+        if h.back_face == 1 and mat.double_sided == 0:
+            return True
+        return is_cut_out(scene, h, mat, uv)
+
+    @wp.func
+    def hit_uv(scene: SceneData, h: SurfaceHit) -> wp.vec2:
+        uv = wp.vec2(0.0)
+        if wp.static(textured):
+            uv = interpolate(scene.uvs, h)
+        return uv
 
     @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
@@ -193,11 +205,39 @@ def render_kernel(features):
             distance = wp.length(to_light)
             direction = safe_normalize(to_light, ls.to_light)
             max_t = distance * (1.0 - SHADOW_RAY_SHORTENING)
-        verdict = light_buffer_occlusion(buffers, light, position, scene.positions, scene.indices, origin, direction,
-                                         max_t, h.face)
+        verdict, blocker = light_buffer_occlusion(buffers, light, position, scene.positions, scene.indices, origin,
+                                                  direction, max_t, h.face)
+        if wp.static(f.masked_shadows):
+            if verdict == UNDECIDED or (verdict == OCCLUDED
+                                        and scene.materials[scene.face_material[blocker]].alpha_mask == 1):
+                return occluded_past_cut_outs(scene, light, origin, direction, max_t)
         if verdict == UNDECIDED:
             return wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t)
         return verdict == OCCLUDED
+
+    @wp.func
+    def occluded_past_cut_outs(scene: SceneData, light: int, origin: wp.vec3, direction: wp.vec3,
+                               max_t: float) -> bool:
+        """Whether a surface blocks the shadow ray, alpha cut-outs letting it through: nearest hit
+        after nearest hit, as camera rays pass them; a ray still blocked after MAX_PASS_THROUGH
+        cut-outs counts as occluded."""
+        o = origin
+        d = direction
+        reach = max_t
+        position = scene.lights[light].position
+        for _ in range(MAX_PASS_THROUGH):
+            q = wp.mesh_query_ray(scene.mesh, o, d, reach)
+            if not q.result:
+                return False
+            h = surface_hit(scene, q.face, q.u, q.v, d)
+            if not is_cut_out(scene, h, scene.materials[h.material], hit_uv(scene, h)):
+                return True
+            o = offset_ray_origin(h.p, h.p_error, h.ng, d)
+            if reach < RAY_FAR:
+                to_light = position - o
+                reach = wp.length(to_light) * (1.0 - SHADOW_RAY_SHORTENING)
+                d = safe_normalize(to_light, d)
+        return True
 
     @wp.func
     def shading_normal(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
@@ -281,9 +321,7 @@ def render_kernel(features):
                         break
                     h = surface_hit(scene, face, u, v, d)
                     mat = scene.materials[h.material]
-                    uv = wp.vec2(0.0)
-                    if wp.static(textured):
-                        uv = interpolate(scene.uvs, h)
+                    uv = hit_uv(scene, h)
                     if wp.static(f.pass_through):
                         if is_culled(scene, h, mat, uv):
                             origin = offset_ray_origin(h.p, h.p_error, h.ng, d)

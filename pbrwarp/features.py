@@ -39,6 +39,8 @@ class Features:
     supersampling: bool = True
     # camera rays may pass through surfaces: single-sided back faces, alpha masks
     pass_through: bool = True
+    # shadow rays pass alpha cut-outs
+    masked_shadows: bool = True
     # depth and normal outputs
     aovs: bool = True
     # primary visibility: "raycast" (a BVH query per camera sample) or "raster" (a visibility buffer)
@@ -158,7 +160,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
         add("shadows", False, "no shadow rays: shadows=False")
     elif not scene.lights:
         add("shadows", False, "no shadow rays: no lights")
-    elif len(prims) == 1 and _is_convex(prims[0]):
+    elif len(prims) == 1 and prims[0].material.alpha_mode != "MASK" and _is_convex(prims[0]):
         add("shadows", False, "no shadow rays: one convex mesh cannot shadow itself beyond what n.l does")
     elif shadows == "map":
         decisions.append(Decision("shadows", "map", f"shadow maps: {len(scene.lights)} lookups per hit, "
@@ -193,6 +195,12 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     coloured = sum(1 for p in prims if p.colors is not None and not np.all(p.colors == 1.0))
     add("vertex_colors", coloured, f"vertex colours: {_count(coloured, 'mesh')}" if coloured else "no vertex colours")
     add("supersampling", spp > 1, f"{spp} stratified samples per pixel" if spp > 1 else "one ray through each pixel centre (spp = 1)")
+    masked = sum(1 for m in mats if m.alpha_mode == "MASK")
+    if any(d.name == "shadows" and d.present == "rays" for d in decisions):
+        add("masked_shadows", masked, f"shadow rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
+            else "no cut-outs in shadow rays: no alpha-masked material")
+    else:
+        add("masked_shadows", False, "no cut-outs in shadow rays: no shadow rays")
     single = sum(1 for m in mats if not m.double_sided or m.alpha_mode == "MASK")
     add("pass_through", single, f"camera rays pass single-sided back faces and alpha cut-outs ({_count(single, 'material')})"
         if single else "no pass-through: every material is double-sided and opaque")

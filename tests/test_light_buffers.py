@@ -50,8 +50,8 @@ def verdicts(scene: SceneData, buffers: LightBuffers, light: int, faces: wp.arra
     if data.kind != 1:
         direction = wp.normalize(data.position - origin)
         max_t = wp.length(data.position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
-    verdict = light_buffer_occlusion(buffers, light, data.position, scene.positions, scene.indices, origin, direction,
-                                     max_t, f)
+    verdict, blocker = light_buffer_occlusion(buffers, light, data.position, scene.positions, scene.indices, origin,
+                                              direction, max_t, f)
     reached = wp.where(sample_light(data, p).irradiance == wp.vec3(0.0), 0, 1)
     out[i] = wp.vec3i(verdict, wp.where(wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t), 1, 0), reached)
 
