@@ -13,6 +13,7 @@ from .direction_sampling import (orthonormal_basis, pdf_cosine_hemisphere, pdf_g
 from .ibl import (EnvironmentData, F_SchlickRoughness, environment_irradiance, environment_radiance,
                   prefiltered_radiance, split_sum_specular)
 from .robust import MIN_COSINE, RAY_FAR, offset_ray_origin
+from .scene_data import SceneData
 
 wp.set_module_options({"enable_backward": False})
 
@@ -22,12 +23,15 @@ ENVIRONMENT_STREAM = wp.constant(1 << 24)
 
 
 @functools.cache
-def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multiscatter: bool, coupled: bool, brdf):
-    """ambient(mesh, env, dfg, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
+def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multiscatter: bool, coupled: bool, brdf,
+                occluded):
+    """ambient(scene, env, dfg, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
     kappa, seed, stream) -> radiance reflected towards v of the environment's light (unoccluded; the caller
     applies the occlusion texture). ``brdf`` is the render kernel's own BRDF, which the Monte Carlo
     rung integrates; ``multiscatter`` and ``coupled`` (the diffuse lobe gets only what the specular
-    lobe leaves) make the split sum follow the same energy rungs."""
+    lobe leaves) make the split sum follow the same energy rungs. ``shadowed`` Monte Carlo
+    directions are traced with the render kernel's ``occluded(scene, origin, direction, max_t)``,
+    which lets alpha cut-outs through as its shadow rays do."""
     lagarde = fresnel == "lagarde"
 
     @wp.func
@@ -57,7 +61,7 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
         return out + wp.cw_mul(diffuse, environment_irradiance(env, n))
 
     @wp.func
-    def monte_carlo(mesh: wp.uint64, env: EnvironmentData, p: wp.vec3, p_error: wp.vec3, ng: wp.vec3, n: wp.vec3,
+    def monte_carlo(scene: SceneData, env: EnvironmentData, p: wp.vec3, p_error: wp.vec3, ng: wp.vec3, n: wp.vec3,
                     v: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float, specular: float,
                     eta: wp.vec3, kappa: wp.vec3, seed: int, stream: int) -> wp.vec3:
         """Half the directions cosine-weighted, half GGX visible normals, weighted by the balance
@@ -89,18 +93,18 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
             if pdf <= 0.0:
                 continue
             if wp.static(shadowed):
-                if wp.mesh_query_ray_anyhit(mesh, offset_ray_origin(p, p_error, ng, l), l, RAY_FAR):
+                if occluded(scene, offset_ray_origin(p, p_error, ng, l), l, RAY_FAR):
                     continue
             f = brdf(n, v, l, base_color, metallic, roughness, specular, eta, kappa)
             total = total + wp.cw_mul(f, environment_radiance(env, l)) * (l_local[2] / pdf)
         return total / float(samples)
 
     @wp.func
-    def ambient(mesh: wp.uint64, env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), p: wp.vec3, p_error: wp.vec3,
+    def ambient(scene: SceneData, env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), p: wp.vec3, p_error: wp.vec3,
                 ng: wp.vec3, n: wp.vec3, v: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
                 specular: float, eta: wp.vec3, kappa: wp.vec3, seed: int, stream: int) -> wp.vec3:
         if wp.static(method == "monte_carlo"):
-            return monte_carlo(mesh, env, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
+            return monte_carlo(scene, env, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
                                kappa, seed, stream)
         return split_sum(env, dfg, n, v, base_color, metallic, roughness, specular)
 

@@ -106,9 +106,6 @@ def render_kernel(features):
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
     lit = f.point_lights or f.directional_lights or f.spot_lights
     ibl = f.environment
-    if ibl:
-        ambient = ambient_for(ibl.method, ibl.fresnel, ibl.samples, ibl.shadowed, f.brdf.energy == "multiscatter",
-                              f.brdf.coupling != "none" and f.diffuse and f.specular, brdf)
     shaded = lit or bool(ibl)
 
     @wp.func
@@ -133,6 +130,31 @@ def render_kernel(features):
         if wp.static(textured):
             uv = interpolate(scene.uvs, h)
         return uv
+
+    @wp.func
+    def occluded(scene: SceneData, origin: wp.vec3, direction: wp.vec3, max_t: float) -> bool:
+        """Whether a surface blocks origin + t direction, 0 <= t < max_t (shadow rays, shadowed
+        environment directions). With alpha-masked materials the ray passes their cut-outs, nearest
+        hit after nearest hit as camera rays do; still blocked after MAX_PASS_THROUGH, it counts as
+        occluded."""
+        if wp.static(not f.masked_occlusion):
+            return wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t)
+        o = origin
+        reach = max_t
+        for _ in range(MAX_PASS_THROUGH):
+            q = wp.mesh_query_ray(scene.mesh, o, direction, reach)
+            if not q.result:
+                return False
+            h = surface_hit(scene, q.face, q.u, q.v, direction)
+            if not is_cut_out(scene, h, scene.materials[h.material], hit_uv(scene, h)):
+                return True
+            o = offset_ray_origin(h.p, h.p_error, h.ng, direction)
+            reach = reach - q.t
+        return True
+
+    if ibl:
+        ambient = ambient_for(ibl.method, ibl.fresnel, ibl.samples, ibl.shadowed, f.brdf.energy == "multiscatter",
+                              f.brdf.coupling != "none" and f.diffuse and f.specular, brdf, occluded)
 
     @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
@@ -180,7 +202,7 @@ def render_kernel(features):
                 fr = brdf(n, view, ls.to_light, base, metallic, roughness, mat.specular, mat.ior_eta, mat.ior_kappa)
                 radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
             if wp.static(bool(ibl)):
-                from_environment = ambient(scene.mesh, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
+                from_environment = ambient(scene, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
                                            roughness, mat.specular, mat.ior_eta, mat.ior_kappa, seed, stream)
                 if wp.static(f.occlusion_texture):
                     if mat.occlusion_texture != NO_TEXTURE:
@@ -207,37 +229,13 @@ def render_kernel(features):
             max_t = distance * (1.0 - SHADOW_RAY_SHORTENING)
         verdict, blocker = light_buffer_occlusion(buffers, light, position, scene.positions, scene.indices, origin,
                                                   direction, max_t, h.face)
-        if wp.static(f.masked_shadows):
-            if verdict == UNDECIDED or (verdict == OCCLUDED
-                                        and scene.materials[scene.face_material[blocker]].alpha_mask == 1):
-                return occluded_past_cut_outs(scene, light, origin, direction, max_t)
         if verdict == UNDECIDED:
-            return wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t)
+            return occluded(scene, origin, direction, max_t)
+        if wp.static(f.masked_occlusion):
+            # the blocker the light buffer found may be cut out there
+            if verdict == OCCLUDED and scene.materials[scene.face_material[blocker]].alpha_mask == 1:
+                return occluded(scene, origin, direction, max_t)
         return verdict == OCCLUDED
-
-    @wp.func
-    def occluded_past_cut_outs(scene: SceneData, light: int, origin: wp.vec3, direction: wp.vec3,
-                               max_t: float) -> bool:
-        """Whether a surface blocks the shadow ray, alpha cut-outs letting it through: nearest hit
-        after nearest hit, as camera rays pass them; a ray still blocked after MAX_PASS_THROUGH
-        cut-outs counts as occluded."""
-        o = origin
-        d = direction
-        reach = max_t
-        position = scene.lights[light].position
-        for _ in range(MAX_PASS_THROUGH):
-            q = wp.mesh_query_ray(scene.mesh, o, d, reach)
-            if not q.result:
-                return False
-            h = surface_hit(scene, q.face, q.u, q.v, d)
-            if not is_cut_out(scene, h, scene.materials[h.material], hit_uv(scene, h)):
-                return True
-            o = offset_ray_origin(h.p, h.p_error, h.ng, d)
-            if reach < RAY_FAR:
-                to_light = position - o
-                reach = wp.length(to_light) * (1.0 - SHADOW_RAY_SHORTENING)
-                d = safe_normalize(to_light, d)
-        return True
 
     @wp.func
     def shading_normal(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> wp.vec3:

@@ -39,8 +39,8 @@ class Features:
     supersampling: bool = True
     # camera rays may pass through surfaces: single-sided back faces, alpha masks
     pass_through: bool = True
-    # shadow rays pass alpha cut-outs
-    masked_shadows: bool = True
+    # occlusion rays (shadow rays, shadowed environment directions) pass alpha cut-outs
+    masked_occlusion: bool = True
     # depth and normal outputs
     aovs: bool = True
     # primary visibility: "raycast" (a BVH query per camera sample) or "raster" (a visibility buffer)
@@ -196,11 +196,13 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     add("vertex_colors", coloured, f"vertex colours: {_count(coloured, 'mesh')}" if coloured else "no vertex colours")
     add("supersampling", spp > 1, f"{spp} stratified samples per pixel" if spp > 1 else "one ray through each pixel centre (spp = 1)")
     masked = sum(1 for m in mats if m.alpha_mode == "MASK")
-    if any(d.name == "shadows" and d.present == "rays" for d in decisions):
-        add("masked_shadows", masked, f"shadow rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
-            else "no cut-outs in shadow rays: no alpha-masked material")
+    traced = any((d.name == "shadows" and d.present == "rays") or (d.name == "environment" and d.present
+                                                                  and d.present.shadowed) for d in decisions)
+    if not traced:
+        add("masked_occlusion", False, "no cut-outs in occlusion rays: no shadow rays nor shadowed environment rays")
     else:
-        add("masked_shadows", False, "no cut-outs in shadow rays: no shadow rays")
+        add("masked_occlusion", masked, f"occlusion rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
+            else "no cut-outs in occlusion rays: no alpha-masked material")
     single = sum(1 for m in mats if not m.double_sided or m.alpha_mode == "MASK")
     add("pass_through", single, f"camera rays pass single-sided back faces and alpha cut-outs ({_count(single, 'material')})"
         if single else "no pass-through: every material is double-sided and opaque")

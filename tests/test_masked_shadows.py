@@ -1,5 +1,5 @@
-"""Alpha-masked (glTF alphaMode MASK) surfaces let shadow rays through where they are cut out,
-as they let camera rays through: a white Lambert floor lit straight down by E lux has radiance
+"""Alpha-masked (glTF alphaMode MASK) surfaces let shadow rays and shadowed environment rays
+through where they are cut out, as they let camera rays through: a white Lambert floor lit straight down by E lux has radiance
 E/pi beneath a cut-out and 0 beneath an opaque part."""
 
 import math
@@ -98,6 +98,22 @@ def test_a_textured_mask_shadows_only_where_it_is_opaque(light, monkeypatch):
     np.testing.assert_array_equal(cut.rgb, bvh_only.rgb)
 
 
-def test_explain_says_shadow_rays_pass_cut_outs():
-    assert "shadow rays pass alpha cut-outs (1 material)" in pw.explain(scene_with(quad(1.0, material=masked(0.0))))
-    assert "no cut-outs in shadow rays" in pw.explain(scene_with(quad(1.0, material=pw.Material())))
+def test_shadowed_environment_light_passes_cut_outs():
+    """Monte Carlo environment light traced against the scene: a cut-out quad over the floor
+    changes nothing, an opaque one darkens it."""
+    ibl = pw.IBL(method="monte_carlo", samples=16, shadowed=True)
+
+    def render(*occluders):
+        scene = scene_with(*occluders)
+        scene.lights.clear()
+        scene.environment = pw.Environment.uniform((1.0, 1.0, 1.0))
+        return render_checked(scene, CAMERA, size=SIZE, ibl=ibl, background=(0.0, 0.0, 0.0))
+
+    bare = render()
+    np.testing.assert_array_equal(render(quad(1.0, material=masked(0.0))).rgb, bare.rgb)
+    assert under_quad(render(quad(1.0, material=masked(1.0))))[0].mean() < 0.9 * under_quad(bare)[0].mean()
+
+
+def test_explain_says_occlusion_rays_pass_cut_outs():
+    assert "occlusion rays pass alpha cut-outs (1 material)" in pw.explain(scene_with(quad(1.0, material=masked(0.0))))
+    assert "no cut-outs in occlusion rays" in pw.explain(scene_with(quad(1.0, material=pw.Material())))

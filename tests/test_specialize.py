@@ -92,12 +92,12 @@ def test_shadows_false_and_no_aovs():
 def test_bare_scene_kernel_has_no_shadow_rays_textures_or_tangent_frames():
     scene = scenes()[0][1]
     source = generated_source(render_kernel(scene_features(scene, upload(scene), shadows=True, spp=1)))
-    for absent in ("mesh_query_ray_anyhit", "sample_texture", "perturb_normal", "orthonormal_tangent",
+    for absent in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "orthonormal_tangent",
                    "spot_attenuation", "sample_positional", "multi_jittered_sample"):
         assert absent not in source, absent
     assert "mesh_query_ray" in source and "D_GGX" in source  # it is the right file
     everything = generated_source(render_kernel(pw.Features.everything(spp=4)))
-    for present in ("mesh_query_ray_anyhit", "sample_texture", "perturb_normal", "spot_attenuation", "multi_jittered_sample"):
+    for present in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "spot_attenuation", "multi_jittered_sample"):
         assert present in everything, present
 
 
