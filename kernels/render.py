@@ -4,7 +4,6 @@ code holds only what a scene needs."""
 
 import dataclasses
 import functools
-from typing import Any
 
 import warp as wp
 
@@ -16,83 +15,13 @@ from .light_buffer import LightBuffers, UNDECIDED, OCCLUDED, light_buffer_occlus
 from .lights import LightSample, light_sampler
 from .normal_mapping import perturb_normal
 from .raster import ray_triangle_intersection, triangle_corners, visible_triangle
-from .robust import (
-    RAY_FAR,
-    clamp_to_float32_max,
-    SHADOW_RAY_SHORTENING,
-    triangle_hit_error,
-    offset_ray_origin,
-    safe_normalize,
-)
+from .robust import RAY_FAR, clamp_to_float32_max, SHADOW_RAY_SHORTENING, offset_ray_origin, safe_normalize
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData
 from .shadow_map import ShadowMaps, shadow_map_visibility
-from .textures import sample_texture
+from .surface import MAX_PASS_THROUGH, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
 
 wp.set_module_options({"enable_backward": False})
-
-# How many culled surfaces (single-sided back faces, alpha-masked texels) a camera ray may pass
-# through before it gives up and reports a miss.
-MAX_PASS_THROUGH = wp.constant(16)
-
-
-@wp.struct
-class SurfaceHit:
-    p: wp.vec3
-    p_error: wp.vec3
-    # geometric normal, turned towards the side the ray came from
-    ng: wp.vec3
-    b0: float
-    b1: float
-    b2: float
-    i0: int
-    i1: int
-    i2: int
-    material: int
-    back_face: int
-    face: int
-
-
-@wp.func
-def surface_hit(scene: SceneData, face: int, u: float, v: float, ray_dir: wp.vec3) -> SurfaceHit:
-    """Hit point from barycentrics (Warp: p = p0 u + p1 v + p2 (1 - u - v)) and the error bound of a ray leaving it."""
-    h = SurfaceHit()
-    c = triangle_corners(scene.indices, face)
-    h.i0 = c[0]
-    h.i1 = c[1]
-    h.i2 = c[2]
-    p0 = scene.positions[h.i0]
-    p1 = scene.positions[h.i1]
-    p2 = scene.positions[h.i2]
-    h.b0 = u
-    h.b1 = v
-    h.b2 = 1.0 - u - v
-    h.p = p0 * h.b0 + p1 * h.b1 + p2 * h.b2
-    h.p_error = triangle_hit_error(p0, p1, p2)
-    ng = safe_normalize(wp.cross(p1 - p0, p2 - p0), -ray_dir)
-    h.back_face = 0
-    if wp.dot(ng, ray_dir) > 0.0:
-        h.back_face = 1
-        ng = -ng
-    h.ng = ng
-    h.material = scene.face_material[face]
-    h.face = face
-    return h
-
-
-@wp.func
-def interpolate(a: wp.array(dtype=Any), h: SurfaceHit):
-    """A per-vertex attribute at the hit, from its barycentrics."""
-    return a[h.i0] * h.b0 + a[h.i1] * h.b1 + a[h.i2] * h.b2
-
-
-@wp.func
-def texture_or_one(scene: SceneData, index: int, uv: wp.vec2) -> wp.vec4:
-    """Texture ``index`` at uv, or white for an empty slot."""
-    if index == NO_TEXTURE:
-        return wp.vec4(1.0)
-    return sample_texture(scene.textures[index], scene.texels, uv)
-
 
 @functools.cache
 def render_kernel(features):
@@ -107,50 +36,13 @@ def render_kernel(features):
     lit = f.point_lights or f.directional_lights or f.spot_lights
     ibl = f.environment
     shaded = lit or bool(ibl)
-
-    @wp.func
-    def is_cut_out(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
-        """Whether an alpha-masked material is cut out at the hit (glTF alphaMode MASK)."""
-        if mat.alpha_mask == 1:
-            alpha = mat.base_color[3] * interpolate(scene.colors, h)[3]
-            if wp.static(f.base_color_texture):
-                alpha = alpha * texture_or_one(scene, mat.base_color_texture, uv)[3]
-            return alpha < mat.alpha_cutoff
-        return False
+    hit_uv, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion)
 
     @wp.func
     def is_culled(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
         if h.back_face == 1 and mat.double_sided == 0:
             return True
         return is_cut_out(scene, h, mat, uv)
-
-    @wp.func
-    def hit_uv(scene: SceneData, h: SurfaceHit) -> wp.vec2:
-        uv = wp.vec2(0.0)
-        if wp.static(textured):
-            uv = interpolate(scene.uvs, h)
-        return uv
-
-    @wp.func
-    def occluded(scene: SceneData, origin: wp.vec3, direction: wp.vec3, max_t: float) -> bool:
-        """Whether a surface blocks origin + t direction, 0 <= t < max_t (shadow rays, shadowed
-        environment directions). With alpha-masked materials the ray passes their cut-outs, nearest
-        hit after nearest hit as camera rays do; still blocked after MAX_PASS_THROUGH, it counts as
-        occluded."""
-        if wp.static(not f.masked_occlusion):
-            return wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t)
-        o = origin
-        reach = max_t
-        for _ in range(MAX_PASS_THROUGH):
-            q = wp.mesh_query_ray(scene.mesh, o, direction, reach)
-            if not q.result:
-                return False
-            h = surface_hit(scene, q.face, q.u, q.v, direction)
-            if not is_cut_out(scene, h, scene.materials[h.material], hit_uv(scene, h)):
-                return True
-            o = offset_ray_origin(h.p, h.p_error, h.ng, direction)
-            reach = reach - q.t
-        return True
 
     if ibl:
         ambient = ambient_for(ibl.method, ibl.fresnel, ibl.samples, ibl.shadowed, f.brdf.energy == "multiscatter",

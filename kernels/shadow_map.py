@@ -2,7 +2,15 @@
 (kernels/raster.py), and the percentage-closer lookup that replaces a shadow ray (Williams 1978;
 Reeves, Salesin and Cook 1987)."""
 
+import functools
+
 import warp as wp
+
+from .camera import CameraData, camera_ray_direction
+from .raster import NO_TRIANGLE, visibility_entry, visible_triangle
+from .robust import RAY_FAR
+from .scene_data import SceneData
+from .surface import surface_tests
 
 wp.set_module_options({"enable_backward": False})
 
@@ -104,3 +112,37 @@ def shadow_map_visibility(maps: ShadowMaps, light: int, light_position: wp.vec3,
     if span[1] == CUBE_FACES:
         view = span[0] + cube_face(p - light_position)
     return fraction_lit(maps, view, p, ng)
+
+
+@functools.cache
+def cut_out_pass():
+    """The kernel that lets a depth map see through alpha cut-outs (built on first use)."""
+    _, _, nearest_opaque, _ = surface_tests(True, True, True)
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def see_through_cut_outs(scene: SceneData, cam: CameraData, orthographic: int,
+                             buffer: wp.array2d(dtype=wp.uint64)):
+        """Per row of a rasterized depth map: each texel whose nearest triangle is alpha-masked
+        gets instead the first surface not cut out along its ray (from the eye through the texel
+        centre, or along cam.forward from the texel's point on the eye's plane in a parallel
+        view), or none."""
+        y = wp.tid()
+        for x in range(buffer.shape[1]):
+            face = visible_triangle(buffer[y, x])
+            if face >= 0:
+                if scene.materials[scene.face_material[face]].alpha_mask == 1:
+                    fx = float(x) + 0.5
+                    fy = float(y) + 0.5
+                    origin = cam.eye
+                    direction = camera_ray_direction(cam, fx, fy)
+                    if orthographic != 0:
+                        origin = (cam.eye + cam.right * (2.0 * fx / float(cam.width) - 1.0)
+                                  + cam.up * (1.0 - 2.0 * fy / float(cam.height)))
+                        direction = cam.forward
+                    found, h = nearest_opaque(scene, origin, direction, RAY_FAR)
+                    entry = NO_TRIANGLE
+                    if found:
+                        entry = visibility_entry(wp.dot(h.p - cam.eye, cam.forward), h.face)
+                    buffer[y, x] = entry
+
+    return see_through_cut_outs

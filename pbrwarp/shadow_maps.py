@@ -15,7 +15,8 @@ from .errors import InputError
 from .lights import DIRECTIONAL, SPOT
 from .raster import decode, reused_buffer, visibility_buffer
 from pbrwarp.kernels.camera import CameraData
-from pbrwarp.kernels.shadow_map import ShadowMaps, ShadowView
+from pbrwarp.kernels.loading import load_for_cpu
+from pbrwarp.kernels.shadow_map import ShadowMaps, ShadowView, cut_out_pass
 
 # A directional light's map is a parallel projection from a plane this many scene radii behind
 # the scene's centre, so that every triangle lies in front of it.
@@ -111,7 +112,10 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
 
     Kept on the scene and reused while its geometry, the lights' placement and the settings stay
     the same: moving the camera or changing colours and intensities renders no new maps."""
-    key = (tuple(light_geometry(light) for light in scene.lights), settings)
+    masked = [p.material for p in scene.primitives if p.material.alpha_mode == "MASK"]
+    # what decides the cut-outs the maps see through
+    masks = tuple((m.alpha_cutoff, m.base_color[3], id(m.base_color_texture)) for m in masked)
+    key = (tuple(light_geometry(light) for light in scene.lights), settings, masks)
     cached = scene.__dict__.get("_shadow_maps")
     if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
         return cached[2]
@@ -127,6 +131,11 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
             buffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads,
                                        out=reused_buffer("shadow map", cam.height, cam.width),
                                        orthographic=bool(view.orthographic))
+            if masked:
+                see_through = cut_out_pass()
+                load_for_cpu(see_through)
+                wp.launch(see_through, dim=cam.height, device="cpu",
+                          inputs=[gpu.data, cam, int(view.orthographic), buffer])
             depths.append(decode(buffer)[1])
             views.append(view)
     maps = ShadowMaps()

@@ -1,5 +1,5 @@
-"""Alpha-masked (glTF alphaMode MASK) surfaces let shadow rays and shadowed environment rays
-through where they are cut out, as they let camera rays through: a white Lambert floor lit straight down by E lux has radiance
+"""Alpha-masked (glTF alphaMode MASK) surfaces let shadow rays, shadow maps and shadowed
+environment rays through where they are cut out, as they let camera rays through: a white Lambert floor lit straight down by E lux has radiance
 E/pi beneath a cut-out and 0 beneath an opaque part."""
 
 import math
@@ -96,6 +96,34 @@ def test_a_textured_mask_shadows_only_where_it_is_opaque(light, monkeypatch):
     monkeypatch.setattr(sys.modules["pbrwarp.render"], "build_light_buffers", lambda *args: no_light_buffers())
     bvh_only = render_checked(scene_with(quad(1.0, material=masked(texture=texture)), light=light), CAMERA, size=SIZE)
     np.testing.assert_array_equal(cut.rgb, bvh_only.rgb)
+
+
+@pytest.mark.parametrize("light", [pw.DirectionalLight(direction=(0.0, -1.0, 0.0), intensity=E),
+                                   pw.PointLight(position=(0.3, 4.0, 0.2), intensity=40.0)],
+                         ids=["directional", "point"])
+def test_shadow_maps_see_through_cut_outs(light):
+    """Shadow maps, rasterized from the light, look through a masked quad where it is cut out:
+    beneath a fully cut-out quad the floor is lit as with no quad at all, and a half-masked
+    texture shadows like the ray-traced reference but along its blurred edge."""
+    bare = render_checked(scene_with(light=light), CAMERA, size=SIZE, shadows="map")
+    cut = render_checked(scene_with(quad(1.0, material=masked(0.0)), light=light), CAMERA, size=SIZE, shadows="map")
+    np.testing.assert_array_equal(cut.rgb, bare.rgb)
+    rgba = np.full((8, 64, 4), 255, np.uint8)
+    rgba[:, :32, 3] = 0
+    texture = pw.Texture(rgba, wrap_s="clamp", wrap_t="clamp")
+    scene = scene_with(quad(1.0, material=masked(texture=texture)), light=light)
+    mapped = render_checked(scene, CAMERA, size=SIZE, shadows="map")
+    traced = render_checked(scene, CAMERA, size=SIZE, shadows="rays")
+    differs = ~np.all(np.isclose(mapped.rgb, traced.rgb, rtol=1e-3, atol=1e-4), axis=-1)
+    assert differs.mean() < 0.03, differs.mean()
+
+
+def test_shadow_maps_follow_a_changed_cut_out():
+    material = masked(0.0)
+    scene = scene_with(quad(1.0, material=material))
+    assert under_quad(render_checked(scene, CAMERA, size=SIZE, shadows="map"))[0].min() > 0.0
+    material.base_color = (1.0, 1.0, 1.0, 1.0)
+    assert under_quad(render_checked(scene, CAMERA, size=SIZE, shadows="map"))[0].max() == 0.0
 
 
 def test_shadowed_environment_light_passes_cut_outs():
