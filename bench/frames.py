@@ -90,7 +90,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING
     rows = []
-    for name, mesh in (("icosphere (81,920 tris)", icosphere(6)), ("stanford bunny (69,451 tris)", bunny())):
+    for name, mesh in (("icosphere (81,920 tris)", icosphere(6)), ("stanford bunny (69,451 tris)", bunny(decimated=False))):
         scene, camera = scene_on_floor(mesh)
         variants = {f"{visibility}, shadows {shadows or 'off'}": frame(scene, camera, args.size, visibility, shadows)
                     for visibility, shadows in VARIANTS}
