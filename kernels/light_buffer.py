@@ -132,14 +132,22 @@ def triangle_cells(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -> w
         return empty_rect()
     if proj.orthographic == 0 and (c0[2] <= zero or c1[2] <= zero or c2[2] <= zero):
         return clipped_rect(proj, p0, p1, p2)
+    b = screen_bounds(proj, c0, c1, c2)
+    return cell_rect(proj, b[0], b[1], b[2], b[3])
+
+
+@wp.func
+def screen_bounds(proj: Projection, c0: wp.vec3d, c1: wp.vec3d, c2: wp.vec3d) -> wp.vec4d:
+    """(x_min, y_min, x_max, y_max), in cells, of a triangle wholly in front of the view, given
+    its vertices' camera coordinates."""
     x0 = screen_x(proj, c0)
     x1 = screen_x(proj, c1)
     x2 = screen_x(proj, c2)
     y0 = screen_y(proj, c0)
     y1 = screen_y(proj, c1)
     y2 = screen_y(proj, c2)
-    return cell_rect(proj, wp.min(x0, wp.min(x1, x2)), wp.min(y0, wp.min(y1, y2)), wp.max(x0, wp.max(x1, x2)),
-                     wp.max(y0, wp.max(y1, y2)))
+    return wp.vec4d(wp.min(x0, wp.min(x1, x2)), wp.min(y0, wp.min(y1, y2)), wp.max(x0, wp.max(x1, x2)),
+                    wp.max(y0, wp.max(y1, y2)))
 
 
 @wp.func
@@ -360,16 +368,11 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
     stretch = wp.float64(1.0) + tan_x * tan_x + tan_y * tan_y
     spread_x = spread * proj.half_width / tan_x * stretch
     spread_y = spread * proj.half_height / tan_y * stretch
-    x0 = screen_x(proj, c0)
-    x1 = screen_x(proj, c1)
-    x2 = screen_x(proj, c2)
-    y0 = screen_y(proj, c0)
-    y1 = screen_y(proj, c1)
-    y2 = screen_y(proj, c2)
-    x_min = wp.min(x0, wp.min(x1, x2))
-    x_max = wp.max(x0, wp.max(x1, x2))
-    y_min = wp.min(y0, wp.min(y1, y2))
-    y_max = wp.max(y0, wp.max(y1, y2))
+    b = screen_bounds(proj, c0, c1, c2)
+    x_min = b[0]
+    y_min = b[1]
+    x_max = b[2]
+    y_max = b[3]
     r = cell_rect(proj, x_min, y_min, x_max, y_max)
     x_min = x_min - CELL_MARGIN - spread_x
     y_min = y_min - CELL_MARGIN - spread_y
