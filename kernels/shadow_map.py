@@ -120,13 +120,13 @@ def cut_out_pass():
     _, _, nearest_opaque, _ = surface_tests(True, True, True)
 
     @wp.kernel(enable_backward=False, module="unique")
-    def see_through_cut_outs(scene: SceneData, cam: CameraData, orthographic: int,
+    def see_through_cut_outs(scene: SceneData, cam: CameraData, orthographic: int, first_row: int,
                              buffer: wp.array2d(dtype=wp.uint64)):
-        """Per row of a rasterized depth map: each texel whose nearest triangle is alpha-masked
-        gets instead the first surface not cut out along its ray (from the eye through the texel
-        centre, or along cam.forward from the texel's point on the eye's plane in a parallel
-        view), or none."""
-        y = wp.tid()
+        """Per row (from first_row) of a rasterized depth map: each texel whose nearest triangle
+        is alpha-masked gets instead the first surface not cut out along its ray (from the eye
+        through the texel centre, or along cam.forward from the texel's point on the eye's plane
+        in a parallel view), or none."""
+        y = first_row + wp.tid()
         for x in range(buffer.shape[1]):
             face = visible_triangle(buffer[y, x])
             if face >= 0:

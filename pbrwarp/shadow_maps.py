@@ -13,6 +13,7 @@ import warp as wp
 from . import validate
 from .errors import InputError
 from .lights import DIRECTIONAL, SPOT
+from .parallel import run_all, thread_count
 from .raster import decode, reused_buffer, visibility_buffer
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
@@ -23,6 +24,8 @@ from pbrwarp.kernels.shadow_map import ShadowMaps, ShadowView, cut_out_pass
 DIRECTIONAL_VIEW_DISTANCE_RADII = 2.0
 # Spot lights whose cone fits a view this wide get one map; wider ones get a cube of six.
 MAX_SPOT_VIEW_HALF_ANGLE = math.radians(60.0)
+# Launches per thread of the pass that ray casts texels showing alpha-masked triangles.
+ROW_BLOCKS_PER_THREAD = 4
 CUBE_DIRECTIONS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
 
 
@@ -110,8 +113,9 @@ def light_geometry(light) -> tuple:
 def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
     """Every light's depth maps, rendered with the rasterizer and packed for the render kernel.
 
-    Kept on the scene and reused while its geometry, the lights' placement and the settings stay
-    the same: moving the camera or changing colours and intensities renders no new maps."""
+    Kept on the scene and reused while its geometry, the lights' placement, the settings and the
+    alpha-masked materials' cut-outs stay the same: moving the camera or changing colours and
+    intensities renders no new maps."""
     masked = [p.material for p in scene.primitives if p.material.alpha_mode == "MASK"]
     # what decides the cut-outs the maps see through
     masks = tuple((m.alpha_cutoff, m.base_color[3], id(m.base_color_texture)) for m in masked)
@@ -132,10 +136,7 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
                                        out=reused_buffer("shadow map", cam.height, cam.width),
                                        orthographic=bool(view.orthographic))
             if masked:
-                see_through = cut_out_pass()
-                load_for_cpu(see_through)
-                wp.launch(see_through, dim=cam.height, device="cpu",
-                          inputs=[gpu.data, cam, int(view.orthographic), buffer])
+                _see_through_cut_outs(gpu, cam, view, buffer, threads)
             depths.append(decode(buffer)[1])
             views.append(view)
     maps = ShadowMaps()
@@ -147,6 +148,21 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
     maps.pcf = settings.pcf
     scene.__dict__["_shadow_maps"] = (gpu.data.positions, key, maps)
     return maps
+
+
+def _see_through_cut_outs(gpu, cam, view, buffer, threads):
+    """Texels of a rasterized map showing an alpha-masked triangle ray cast past its cut-outs
+    (kernels/shadow_map.cut_out_pass), in blocks of rows on every thread."""
+    kernel = cut_out_pass()
+    load_for_cpu(kernel)
+    workers = thread_count(threads)
+    rows = -(-cam.height // (ROW_BLOCKS_PER_THREAD * workers))
+
+    def launch(first_row):
+        wp.launch(kernel, dim=min(rows, cam.height - first_row), device="cpu",
+                  inputs=[gpu.data, cam, int(view.orthographic), first_row, buffer])
+
+    run_all(launch, range(0, cam.height, rows), workers)
 
 
 def shadow_mode(shadows) -> tuple[object, ShadowMap | None]:
