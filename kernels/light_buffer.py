@@ -62,7 +62,8 @@ MAX_CLEAR_CHECKS = wp.constant(64)
 # a shadow ray origin's offset off its surface (~1e-7 of the coordinates).
 PLANE_TOLERANCE = wp.constant(wp.float64(1.0e-12))
 # Bound, relative to a triangle's largest coordinate, on how far a shadow ray's origin may lie from
-# it: the hit point's error bound and the origin's offset (kernels/robust.py), ~1e-6.
+# it: the hit point's rounding and the origin's offset (kernels/robust.py), each at most
+# sqrt(3) gamma(7) 3 ~ 2.2e-6 of it.
 ORIGIN_DEVIATION = wp.constant(wp.float64(1.0e-5))
 
 
