@@ -1,0 +1,95 @@
+"""Where a whole frame's time goes: bench/frames.py's scenes taken apart with render options.
+
+    python bench/frame_parts.py [--repeats 5] [--size 1024]
+
+Per scene and thread count (1 and every core), medians of interleaved rounds after a warm-up:
+the rasterized visibility buffer alone; whole frames (visibility "raster") without shadows, then
+without the depth and normal outputs, then with the diffuse lobe's albedo coupling replaced by the
+cheapest coupling ("none", no table lookups), then with shadow rays through the light buffers
+kept from an earlier frame; and building the light buffers. Differences between these are the
+parts' costs. Writes bench/results/frame_parts.{md,json}.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+import warp as wp
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import interleaved_medians, write_results  # noqa: E402
+from frames import scene_on_floor  # noqa: E402
+
+import pbrwarp as pw  # noqa: E402
+from pbrwarp import light_buffers  # noqa: E402
+from pbrwarp.gpu_scene import back_face_culling, upload  # noqa: E402
+from pbrwarp.meshes import bunny, icosphere  # noqa: E402
+from pbrwarp.raster import reused_buffer, visibility_buffer  # noqa: E402
+from pbrwarp.render import _camera_data  # noqa: E402
+
+PARTS = ("raster only", "no shadows", "no shadows, no AOVs", "no shadows, coupling none", "shadow rays",
+         "light buffers built")
+
+
+def variants(scene, camera, size, threads):
+    gpu = upload(scene)
+    cam = _camera_data(camera, size, size)
+    cull, _ = back_face_culling(scene, gpu, camera.eye)
+    out = reused_buffer("camera", size, size)
+
+    def frame(**options):
+        return lambda: pw.render(scene, camera, width=size, height=size, threads=threads, visibility="raster",
+                                 progress=False, **options)
+
+    def build():
+        scene.__dict__.pop("_light_buffers", None)
+        light_buffers.build(scene, gpu, threads)
+
+    return dict(zip(PARTS, (
+        lambda: visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads, out=out,
+                                  cull_back_faces=cull),
+        frame(shadows=False),
+        frame(shadows=False, aovs=False),
+        frame(shadows=False, brdf=pw.BRDF(coupling="none")),
+        frame(shadows="rays"),
+        build,
+    )))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--size", type=int, default=1024)
+    args = ap.parse_args(argv)
+    wp.config.log_level = wp.LOG_WARNING
+    cores = os.cpu_count() or 1
+    rows = []
+    for name, mesh in (("icosphere (81,920 tris)", icosphere(6)), ("stanford bunny (69,451 tris)",
+                                                                   bunny(decimated=False))):
+        scene, camera = scene_on_floor(mesh)
+        for threads in sorted({1, cores}):
+            times = interleaved_medians(variants(scene, camera, args.size, threads), args.repeats)
+            # the "shadow rays" frames reuse buffers built by the build part's last run
+            row = {"scene": name, "threads": threads, **{part: 1e3 * times[part] for part in PARTS}}
+            rows.append(row)
+            print(row, file=sys.stderr)
+    lines = [f"| scene ({args.size}², 1 point light, visibility raster) | threads | "
+             + " | ".join(f"{p} ms" for p in PARTS) + " |",
+             "|---|---|" + "---|" * len(PARTS)]
+    for r in rows:
+        lines.append(f"| {r['scene']} | {r['threads']} | " + " | ".join(f"{r[p]:.1f}" for p in PARTS) + " |")
+    lines += ["", "Medians of interleaved rounds after a warm-up. \"raster only\": the visibility buffer alone "
+              "(back faces culled as renders cull them); frames: pw.render with visibility=\"raster\", "
+              "spp 1; \"coupling none\": the diffuse lobe's albedo coupling (two table lookups and a mean "
+              "per evaluation) replaced by none; \"shadow rays\": through light buffers kept from an "
+              "earlier frame; \"light buffers built\": pbrwarp.light_buffers.build for the scene's one "
+              "point light (six 512² faces)."]
+    command = "python bench/frame_parts.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + \
+        (f" --size {args.size}" if args.size != 1024 else "")
+    write_results("frame_parts", command, {"rows": rows}, "\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
