@@ -32,7 +32,7 @@ import trimesh
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import RESULTS, median_time, write_results  # noqa: E402
+from common import RESULTS, command_line, median_time, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp import meshes  # noqa: E402
@@ -211,8 +211,7 @@ def main(argv=None):
               "", "![error vs time](accuracy.png)", "",
               "Differences to the reference (tone-mapped, amplified 4x), one row per rung:", "",
               "![differences](accuracy_differences.png)"]
-    command = "python bench/accuracy.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + \
-        (f" --size {args.size}" if args.size != "256x192" else "")
+    command = command_line(ap, args)
     write_results("accuracy", command, {"rows": rows, "scenes": names}, "\n".join(lines) + "\n")
     plot(rows, RESULTS / "accuracy.png")
     contact_sheet(sheet, [n for n, _, _ in scenes], RESULTS / "accuracy_differences.png")

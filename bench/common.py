@@ -61,6 +61,20 @@ def machine() -> dict:
             "numpy": numpy.__version__, "commit": commit, "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}
 
 
+def command_line(parser, args) -> str:
+    """The command that reproduces a bench run: the script (the parser's prog, in bench/) and every
+    option whose value differs from its default, in the parser's order."""
+    parts = [f"python bench/{parser.prog}"]
+    for action in parser._actions:
+        if not action.option_strings or action.dest == "help":
+            continue
+        value = getattr(args, action.dest)
+        if value == action.default:
+            continue
+        parts.append(action.option_strings[0] if value is True else f"{action.option_strings[0]} {value}")
+    return " ".join(parts)
+
+
 def write_results(name: str, command: str, payload: dict, markdown: str) -> None:
     RESULTS.mkdir(parents=True, exist_ok=True)
     info = machine()

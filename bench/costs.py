@@ -19,7 +19,7 @@ import trimesh
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import median_time, write_results  # noqa: E402
+from common import command_line, median_time, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp.meshes import ASSETS, demo_scene  # noqa: E402
@@ -81,7 +81,7 @@ def main(argv=None):
               "| metallic | roughness | relative RMSE, whole sphere | worst relative error, centre pixels |",
               "|---|---|---|---|"]
     lines += [f"| {m} | {r} | {e:.3f} | {c:.3f} |" for m, r, e, c in spheres]
-    command = "python bench/costs.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "")
+    command = command_line(ap, args)
     write_results("costs", command, {"demo_ms": demo, "split_sum_vs_monte_carlo": spheres}, "\n".join(lines) + "\n")
 
 

@@ -19,7 +19,7 @@ import sys
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import interleaved_medians, write_results  # noqa: E402
+from common import command_line, interleaved_medians, write_results  # noqa: E402
 from frames import scene_on_floor  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
@@ -86,8 +86,7 @@ def main(argv=None):
               "per evaluation) replaced by none; \"shadow rays\": through light buffers kept from an "
               "earlier frame; \"light buffers built\": pbrwarp.light_buffers.build for the scene's one "
               "point light (six 512² faces)."]
-    command = "python bench/frame_parts.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + \
-        (f" --size {args.size}" if args.size != 1024 else "")
+    command = command_line(ap, args)
     write_results("frame_parts", command, {"rows": rows}, "\n".join(lines) + "\n")
 
 

@@ -24,7 +24,7 @@ import trimesh
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import interleaved_medians, write_results  # noqa: E402
+from common import command_line, interleaved_medians, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp.kernels import stages  # noqa: E402
@@ -115,8 +115,7 @@ def main(argv=None):
               "(six 512² cube faces of triangle lists for the point light); \"map reused\": the maps rendered "
               "for an earlier frame serve this one; \"map rebuilt\": rendered for this frame, six 1024² cube "
               "faces for the point light."]
-    command = "python bench/frames.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + \
-        (f" --size {args.size}" if args.size != 1024 else "")
+    command = command_line(ap, args)
     write_results("frames", command, {"rows": rows}, "\n".join(lines) + "\n")
 
 

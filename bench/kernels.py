@@ -23,7 +23,7 @@ import trimesh
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import median_time, write_results  # noqa: E402
+from common import command_line, median_time, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp.kernels import stages  # noqa: E402
@@ -159,7 +159,7 @@ def main(argv=None):
         for size in sizes:
             rows.append(bench_mesh(name, mesh, size, args.repeats, threads_all))
             print(rows[-1], file=sys.stderr)
-    command = "python bench/kernels.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + (" --quick" if args.quick else "")
+    command = command_line(ap, args)
     if not args.quick:
         write_results("kernels", command, {"rows": rows}, markdown(rows, threads_all))
     else:

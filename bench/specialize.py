@@ -20,7 +20,7 @@ import time
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import median_time, write_results  # noqa: E402
+from common import command_line, median_time, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp import meshes  # noqa: E402
@@ -92,8 +92,7 @@ def main(argv=None):
     lines += ["", f"Kernel variants this session: {len(variants)}; build or cache-load time each: "
               + ", ".join(f"{t:.2f} s" for t in variants.values())
               + " (a few seconds means compiled now, milliseconds loaded from Warp's disk cache)."]
-    command = "python bench/specialize.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "") + \
-        (f" --size {args.size}" if args.size != 512 else "") + (" --cold" if args.cold else "")
+    command = command_line(ap, args)
     write_results("specialize", command, {"rows": rows, "variant_load_seconds": list(variants.values())},
                   "\n".join(lines) + "\n")
 

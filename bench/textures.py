@@ -17,7 +17,7 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import median_time, write_results  # noqa: E402
+from common import command_line, median_time, write_results  # noqa: E402
 
 from pbrwarp.kernels.textures import WRAP_REPEAT, TextureData, sample_texture  # noqa: E402
 
@@ -79,7 +79,7 @@ def main(argv=None):
                      f"{r['ratio']:.2f} | {r['max_abs_diff']:.1e} |")
     lines.append("")
     lines.append(f"{LOOKUPS:,} bilinear lookups with repeat wrapping per launch, one thread, median of {args.repeats} after a warm-up.")
-    command = "python bench/textures.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "")
+    command = command_line(ap, args)
     write_results("textures", command, {"rows": rows}, "\n".join(lines) + "\n")
 
 

@@ -33,7 +33,7 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import median_time, write_results  # noqa: E402
+from common import command_line, median_time, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp.gpu_scene import upload  # noqa: E402
@@ -266,7 +266,7 @@ def main(argv=None):
         print(rows[-1], file=sys.stderr)
     rows.sort(key=lambda r: (r["mesh"] != "icosphere" or r["triangles"] != 81920, r["mesh"], r["triangles"], r["size"]))
     model = fit_cost_models(rows, threads_all) if len(rows) > 2 else {}
-    command = "python bench/visibility.py" + (f" --repeats {args.repeats}" if args.repeats != 5 else "")
+    command = command_line(ap, args)
     if args.quick:
         print(rows)
         return
