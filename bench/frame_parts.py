@@ -20,12 +20,11 @@ import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import command_line, interleaved_medians, write_results  # noqa: E402
-from frames import scene_on_floor  # noqa: E402
+from frames import meshes, scene_on_floor  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp import light_buffers  # noqa: E402
 from pbrwarp.gpu_scene import back_face_culling, upload  # noqa: E402
-from pbrwarp.meshes import bunny, icosphere  # noqa: E402
 from pbrwarp.raster import reused_buffer, visibility_buffer  # noqa: E402
 from pbrwarp.render import _camera_data  # noqa: E402
 
@@ -66,8 +65,7 @@ def main(argv=None):
     wp.config.log_level = wp.LOG_WARNING
     cores = os.cpu_count() or 1
     rows = []
-    for name, mesh in (("icosphere (81,920 tris)", icosphere(6)), ("stanford bunny (69,451 tris)",
-                                                                   bunny(decimated=False))):
+    for name, mesh in meshes():
         scene, camera = scene_on_floor(mesh)
         for threads in sorted({1, cores}):
             times = interleaved_medians(variants(scene, camera, args.size, threads), args.repeats)

@@ -37,6 +37,11 @@ VARIANTS = (
 )
 
 
+def meshes():
+    """(name, mesh) of the frames' scenes: the 81,920-triangle icosphere and the full Stanford bunny."""
+    return [("icosphere (81,920 tris)", icosphere(6)), ("stanford bunny (69,451 tris)", bunny(decimated=False))]
+
+
 def scene_on_floor(mesh):
     """``mesh`` scaled to unit radius on a floor, a point light above and to the side."""
     mesh = mesh.copy()
@@ -90,7 +95,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING
     rows = []
-    for name, mesh in (("icosphere (81,920 tris)", icosphere(6)), ("stanford bunny (69,451 tris)", bunny(decimated=False))):
+    for name, mesh in meshes():
         scene, camera = scene_on_floor(mesh)
         variants = {f"{visibility}, shadows {shadows or 'off'}": frame(scene, camera, args.size, visibility, shadows)
                     for visibility, shadows in VARIANTS}
