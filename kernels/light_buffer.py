@@ -402,10 +402,10 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
 
 @wp.kernel
 def mark_clear_triangles(buffers: LightBuffers, light: int, positions: wp.array(dtype=wp.vec3),
-                         indices: wp.array(dtype=wp.int32), first: int, end: int, triangles: int,
-                         triangle_clear: wp.array(dtype=wp.uint8)):
+                         indices: wp.array(dtype=wp.int32), first: int, end: int):
     """Per triangle of [first, end), whether every shadow ray leaving it towards ``light`` (pinhole
-    views) is lit without a query: it is clear wherever its rays may land, in every view."""
+    views) is lit without a query: it is clear wherever its rays may land, in every view
+    (buffers.triangle_clear)."""
     start = first + wp.tid() * ITEMS_PER_THREAD
     span = buffers.light_views[light]
     for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
@@ -415,7 +415,7 @@ def mark_clear_triangles(buffers: LightBuffers, light: int, positions: wp.array(
             if clear:
                 clear = pinhole_triangle_is_clear(buffers, v, span[1] == CUBE_FACES, face, positions[c[0]],
                                                   positions[c[1]], positions[c[2]])
-        triangle_clear[light * triangles + face] = wp.where(clear, wp.uint8(1), wp.uint8(0))
+        buffers.triangle_clear[light * buffers.triangles + face] = wp.where(clear, wp.uint8(1), wp.uint8(0))
 
 
 @wp.func

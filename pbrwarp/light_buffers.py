@@ -126,8 +126,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
         light, first = job
         count = min(per_block, triangles - first)
         wp.launch(lb.mark_clear_triangles, dim=launch_threads(count), device="cpu",
-                  inputs=[buffers, light, positions, indices, first, first + count, triangles,
-                          buffers.triangle_clear])
+                  inputs=[buffers, light, positions, indices, first, first + count])
 
     run_all(mark, [(light, first) for light in pinhole_lights for first in range(0, triangles, per_block)], threads)
     scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers)
