@@ -65,6 +65,11 @@ PLANE_TOLERANCE = wp.constant(wp.float64(1.0e-12))
 # it: the hit point's rounding and the origin's offset (kernels/robust.py), each at most
 # sqrt(3) gamma(7) 3 ~ 2.2e-6 of it.
 ORIGIN_DEVIATION = wp.constant(wp.float64(1.0e-5))
+# The shadow cache (Haines and Greenberg 1986): per light (the first SHADOW_CACHE_LIGHTS), the
+# triangle that blocked the previous shadow ray of the row, tested before the light buffer is
+# asked, since neighbouring pixels are mostly shadowed by the same triangle.
+SHADOW_CACHE_LIGHTS = wp.constant(4)
+ShadowCache = wp.types.vector(length=4, dtype=wp.int32)
 
 
 @wp.struct

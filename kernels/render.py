@@ -11,7 +11,8 @@ from .ambient import ambient_for
 from .brdf import brdf_for
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
-from .light_buffer import LightBuffers, UNDECIDED, OCCLUDED, light_buffer_occlusion, triangle_is_clear
+from .light_buffer import (LightBuffers, UNDECIDED, OCCLUDED, SHADOW_CACHE_LIGHTS, ShadowCache, light_buffer_occlusion,
+                           triangle_is_clear)
 from .lights import LightSample, light_sampler
 from .normal_mapping import perturb_normal
 from .raster import ray_triangle_intersection, triangle_corners, visible_triangle
@@ -51,7 +52,8 @@ def render_kernel(features):
     @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
               dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3,
-              n: wp.vec3, seed: int, stream: int) -> wp.vec3:
+              n: wp.vec3, seed: int, stream: int, cache: ShadowCache):
+        """(radiance leaving the hit towards the view, the shadow cache updated)."""
         radiance = wp.vec3(0.0)
         if wp.static(f.emission):
             radiance = mat.emissive
@@ -85,7 +87,13 @@ def render_kernel(features):
                         continue  # outside a spot's cone: no shadow ray
                 unshadowed = float(1.0)
                 if wp.static(f.shadows == "rays"):
-                    if shadow_ray_occluded(scene, buffers, i, h, ls):
+                    cached = int(-1)
+                    if i < SHADOW_CACHE_LIGHTS:
+                        cached = cache[i]
+                    blocked, blocker = shadow_ray_occluded(scene, buffers, i, h, ls, cached)
+                    if i < SHADOW_CACHE_LIGHTS:
+                        cache[i] = blocker
+                    if blocked:
                         continue
                 if wp.static(f.shadows == "map"):
                     unshadowed = shadow_map_visibility(maps, i, scene.lights[i].position, h.p, h.ng)
@@ -101,15 +109,18 @@ def render_kernel(features):
                         occlusion = texture_or_one(scene, mat.occlusion_texture, uv)[0]
                         from_environment = from_environment * (1.0 + mat.occlusion_strength * (occlusion - 1.0))
                 radiance = radiance + from_environment
-        return radiance
+        return radiance, cache
 
     @wp.func
-    def shadow_ray_occluded(scene: SceneData, buffers: LightBuffers, light: int, h: SurfaceHit, ls: LightSample) -> bool:
-        """Whether a surface blocks the segment from the hit to light ``light``: aimed from the
-        offset origin at the light's position, so that the light buffer's cell holds it, or along
-        a directional light; the BVH answers where the light buffer cannot."""
+    def shadow_ray_occluded(scene: SceneData, buffers: LightBuffers, light: int, h: SurfaceHit, ls: LightSample,
+                            cached: int):
+        """(whether a surface blocks the segment from the hit to light ``light``, the triangle
+        found blocking it or -1): aimed from the offset origin at the light's position, so that
+        the light buffer's cell holds it, or along a directional light. The ``cached`` blocker (of
+        the shadow cache) is tested first, then the light buffer; the BVH answers where the light
+        buffer cannot."""
         if triangle_is_clear(buffers, light, h.face):
-            return False
+            return False, -1
         origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
         direction = ls.to_light
         max_t = RAY_FAR
@@ -119,15 +130,25 @@ def render_kernel(features):
             distance = wp.length(to_light)
             direction = safe_normalize(to_light, ls.to_light)
             max_t = distance * (1.0 - SHADOW_RAY_SHORTENING)
-        verdict, blocker = light_buffer_occlusion(buffers, light, position, scene.positions, scene.indices, origin,
-                                                  direction, max_t, h.face)
+        verdict = UNDECIDED
+        blocker = int(-1)
+        if cached >= 0:
+            c = triangle_corners(scene.indices, cached)
+            hit, t, u, v = ray_triangle_intersection(origin, direction, scene.positions[c[0]], scene.positions[c[1]],
+                                                     scene.positions[c[2]])
+            if hit and t < max_t:
+                verdict = OCCLUDED
+                blocker = cached
         if verdict == UNDECIDED:
-            return occluded(scene, origin, direction, max_t)
+            verdict, blocker = light_buffer_occlusion(buffers, light, position, scene.positions, scene.indices, origin,
+                                                      direction, max_t, h.face)
+        if verdict == UNDECIDED:
+            return occluded(scene, origin, direction, max_t), -1
         if wp.static(f.masked_occlusion):
-            # the blocker the light buffer found may be cut out there
+            # the blocker found may be cut out there
             if verdict == OCCLUDED and scene.materials[scene.face_material[blocker]].alpha_mask == 1:
-                return occluded(scene, origin, direction, max_t)
-        return verdict == OCCLUDED
+                return occluded(scene, origin, direction, max_t), -1
+        return verdict == OCCLUDED, blocker
 
     @wp.func
     def shading_normal(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
@@ -192,6 +213,7 @@ def render_kernel(features):
         # one row per thread index: Warp's CPU code copies the kernel's arguments (structs of
         # arrays, about a kilobyte) for every index, which per pixel cost ~10% of a frame
         py = y0 + wp.tid()
+        cache = ShadowCache(-1)
         for px in range(x0, x0 + tile_width):
             pixel_seed = seed + py * cam.width + px
             radiance = wp.vec3(0.0)
@@ -223,7 +245,9 @@ def render_kernel(features):
                     n = wp.vec3(0.0)
                     if wp.static(shaded or f.aovs):
                         n = shading_normal(scene, h, mat, uv)
-                    radiance = radiance + shade(scene, maps, buffers, env, dfg, h, mat, uv, -d, n, pixel_seed, s)
+                    shaded_radiance, cache = shade(scene, maps, buffers, env, dfg, h, mat, uv, -d, n, pixel_seed, s,
+                                                   cache)
+                    radiance = radiance + shaded_radiance
                     hits = hits + 1
                     if wp.static(f.aovs):
                         normal_sum = normal_sum + n

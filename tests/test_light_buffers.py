@@ -200,3 +200,22 @@ def test_every_asset_renders_the_same_shadows_with_and_without_light_buffers(pat
     bvh_only = render_checked(scene, None, size=(96, 72))
     differs = ~np.all(np.isclose(with_buffers.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
     assert differs.mean() <= 1e-3
+
+
+def test_shadow_cache_keeps_the_shadows_of_every_light(monkeypatch):
+    """The shadow cache remembers the last blocker of the first SHADOW_CACHE_LIGHTS lights only:
+    with more lights than that, some shadowed by the sphere and some not, every light's shadows
+    are still those the BVH alone casts."""
+    from pbrwarp.kernels.light_buffer import SHADOW_CACHE_LIGHTS
+
+    scene = scene_with_floor(icosphere(4), pw.PointLight(position=(2.0, 3.0, 2.0), intensity=20.0))
+    for k in range(SHADOW_CACHE_LIGHTS + 1):
+        angle = 2.0 * np.pi * k / (SHADOW_CACHE_LIGHTS + 1)
+        scene.add_light(pw.PointLight(position=(2.5 * np.cos(angle), 2.0 + 0.3 * k, 2.5 * np.sin(angle)),
+                                      intensity=10.0))
+    cam = pw.Camera.look_at(eye=(0.0, 0.8, 3.2), target=(0.0, -0.2, 0.0))
+    with_buffers = render_checked(scene, cam, size=(160, 120))
+    monkeypatch.setattr(sys.modules["pbrwarp.render"], "build_light_buffers", lambda *args: no_light_buffers())
+    bvh_only = render_checked(scene, cam, size=(160, 120))
+    differs = ~np.all(np.isclose(with_buffers.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
+    assert differs.mean() <= 1e-3
