@@ -13,7 +13,9 @@ convex surface that is every triangle facing the light.
 
 Views are the shadow maps' (kernels/shadow_map.py): a cube of six for point lights and wide spot
 lights, one pinhole view for narrow spots, a parallel view behind the scene for directional lights,
-in the rasterizer's Projection (cells are its pixels). A ray whose cells cannot be named cheaply
+in the rasterizer's Projection (cells are its pixels). A ray from a point or spot light whose
+origin lies farther inside its cell than the ray can stray (its rounding, in cells) is known to
+stay in that cell from its origin's projection alone. A ray whose cells cannot be named cheaply
 (it leaves its cube face or its view, or spans more than MAX_QUERY_CELLS cells) is left to the BVH.
 """
 
@@ -49,6 +51,11 @@ DIRECTION_ROUNDING = wp.constant(1.0e-6)
 # A ray spanning more cells than this (its origin lies close to the light, or it runs nearly
 # across the light's view) is left to the BVH.
 MAX_QUERY_CELLS = wp.constant(4)
+# The query's fast path takes a ray whose direction's rounding (slack times the distance) is at
+# most this share of the light's clearance: up to t_end its points then stay at least
+# CLEAR_RADIUS_SHARE of the clearance away from the light (1 - 6 FAST_PATH_SLACK_SHARE).
+FAST_PATH_SLACK_SHARE = wp.constant(wp.float64(0.01))
+CLEAR_RADIUS_SHARE = wp.constant(wp.float64(0.9))
 # Nearness values are lowered by this fraction so that rounding never makes a triangle seem
 # farther from the light than a point on it.
 NEAR_SHRINK = wp.constant(1.0e-6)
@@ -75,6 +82,9 @@ ShadowCache = wp.types.vector(length=4, dtype=wp.int32)
 @wp.struct
 class LightBuffers:
     views: wp.array(dtype=Projection)
+    # per pinhole view: a bound on the cells a direction crosses per radian it turns, anywhere in
+    # the view (cells_per_radian)
+    view_cells_per_radian: wp.array(dtype=wp.float64)
     # per light: (first view, number of views), (0, 0) for a light whose rays go to the BVH
     light_views: wp.array(dtype=wp.vec2i)
     # per light: no triangle lies nearer than this to it (point and spot lights)
@@ -367,13 +377,8 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
     if nearest <= zero:
         return False
     spread = (largest * ORIGIN_DEVIATION + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (near + magnitude)) / nearest
-    # screen units per radian: half-size over the tangent of the half-angle times 1 + tan^2 of
-    # the angle off the axis, at most 1 + tan_x^2 + tan_y^2 at the view's corners
-    tan_x = wp.float64(1.0) / wp.length(wp.vec3d(proj.to_camera[0, 0], proj.to_camera[0, 1], proj.to_camera[0, 2]))
-    tan_y = wp.float64(1.0) / wp.length(wp.vec3d(proj.to_camera[1, 0], proj.to_camera[1, 1], proj.to_camera[1, 2]))
-    stretch = wp.float64(1.0) + tan_x * tan_x + tan_y * tan_y
-    spread_x = spread * proj.half_width / tan_x * stretch
-    spread_y = spread * proj.half_height / tan_y * stretch
+    spread_x = spread * buffers.view_cells_per_radian[view]
+    spread_y = spread_x
     b = screen_bounds(proj, c0, c1, c2)
     x_min = b[0]
     y_min = b[1]
@@ -445,6 +450,34 @@ def nearest_surface_distance(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), o
 
 # ---------------------------------------------------------------------- shadow rays
 @wp.func
+def cell_verdict(buffers: LightBuffers, e: int, reach: wp.float64, positions: wp.array(dtype=wp.vec3),
+                 indices: wp.array(dtype=wp.int32), origin: wp.vec3, direction: wp.vec3, max_t: float,
+                 origin_face: int, only_cell: bool):
+    """(verdict, blocker) of the triangles cell e lists nearer than ``reach``: OCCLUDED by the
+    first the ray meets, else LIT. ``only_cell``: the ray stays in this cell, so that it meets
+    nothing if its origin's entry is clear here."""
+    if only_cell:
+        for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
+            if wp.float64(buffers.cell_near[k]) > reach:
+                break
+            if buffers.cell_faces[k] == origin_face:
+                if buffers.cell_clear[k] != wp.uint8(0):
+                    return LIT, -1
+                break
+    for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
+        if wp.float64(buffers.cell_near[k]) > reach:
+            break
+        face = buffers.cell_faces[k]
+        if face != origin_face:
+            c = triangle_corners(indices, face)
+            hit, t, u, v = ray_triangle_intersection(origin, direction, positions[c[0]], positions[c[1]],
+                                                     positions[c[2]])
+            if hit and t < max_t:
+                return OCCLUDED, face
+    return LIT, -1
+
+
+@wp.func
 def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp.vec3,
                            positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), origin: wp.vec3,
                            direction: wp.vec3, max_t: float, origin_face: int):
@@ -465,6 +498,7 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
         view = span[0] + cube_face(origin - light_position)
     proj = buffers.views[view]
     co = camera_coordinates(proj, origin)
+    cells = buffers.resolution * buffers.resolution
     # The ray is met only where it lies in front of a parallel view's plane (all triangles do), or
     # farther than the clearance from a point light; it misses the light by the float32 rounding
     # of its direction, at most `slack` times the distance travelled. Past t_end (taken in float64,
@@ -480,9 +514,30 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
         slack = wp.float64(DIRECTION_ROUNDING * (1.0 + magnitude / distance))
         # an upper bound of the exact distance, and of every ray point's distance to the light
         reach = wp.float64(distance) * (wp.float64(1.0) + wp.float64(2.0) * slack)
-        t_end = reach * (wp.float64(1.0) + slack) - wp.float64(buffers.clearance[light]) * (wp.float64(1.0) - slack)
+        clearance = wp.float64(buffers.clearance[light])
+        t_end = reach * (wp.float64(1.0) + slack) - clearance * (wp.float64(1.0) - slack)
         if t_end >= reach:
             return UNDECIDED, -1  # the rounding may carry the ray beyond the clearance
+        # Fast path: a ray from the origin straight at the view's eye is, seen from the eye, a
+        # single point, the origin's. The float32 ray strays from it by less than 2 slack reach
+        # (its direction's rounding, and the float32 light position's off the eye, which slack's
+        # magnitude term bounds), at least CLEAR_RADIUS_SHARE of the clearance away from the light
+        # up to t_end: its projection stays within `drift` cells of the origin's, and if that lies
+        # so far inside a cell, the whole ray stays in it.
+        if co[2] > wp.float64(0.0) and slack * reach <= FAST_PATH_SLACK_SHARE * clearance:
+            inverse_z = wp.float64(1.0) / co[2]
+            xo = (co[0] * inverse_z + wp.float64(1.0)) * proj.half_width
+            yo = (wp.float64(1.0) - co[1] * inverse_z) * proj.half_height
+            drift = (wp.float64(2.0) * slack * reach / (CLEAR_RADIUS_SHARE * clearance)
+                     * buffers.view_cells_per_radian[view] + CELL_MARGIN)
+            fx = wp.floor(xo)
+            fy = wp.floor(yo)
+            if (fx >= wp.float64(0.0) and fy >= wp.float64(0.0) and fx < wp.float64(proj.width)
+                    and fy < wp.float64(proj.height) and xo - fx >= drift and fx + wp.float64(1.0) - xo >= drift
+                    and yo - fy >= drift and fy + wp.float64(1.0) - yo >= drift):
+                e = view * cells + int(fy) * buffers.resolution + int(fx)
+                return cell_verdict(buffers, e, reach, positions, indices, origin, direction, max_t, origin_face,
+                                    True)
     t_end = wp.clamp(t_end, wp.float64(0.0), wp.float64(max_t))
     end = to_double(origin) + to_double(direction) * t_end
     ce = proj.to_camera * (end - proj.eye)
@@ -502,28 +557,11 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
         return UNDECIDED, -1
     if (r[2] - r[0] + 1) * (r[3] - r[1] + 1) > MAX_QUERY_CELLS:
         return UNDECIDED, -1
-    if r[0] == r[2] and r[1] == r[3]:
-        # within one cell: a ray leaving a triangle that is clear there meets nothing
-        e = view * buffers.resolution * buffers.resolution + r[1] * buffers.resolution + r[0]
-        for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
-            if wp.float64(buffers.cell_near[k]) > reach:
-                break
-            if buffers.cell_faces[k] == origin_face:
-                if buffers.cell_clear[k] != wp.uint8(0):
-                    return LIT, -1
-                break
+    only_cell = r[0] == r[2] and r[1] == r[3]
     for y in range(r[1], r[3] + 1):
         for x in range(r[0], r[2] + 1):
-            e = view * buffers.resolution * buffers.resolution + y * buffers.resolution + x
-            for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
-                if wp.float64(buffers.cell_near[k]) > reach:
-                    break
-                face = buffers.cell_faces[k]
-                if face == origin_face:
-                    continue
-                c = triangle_corners(indices, face)
-                hit, t, u, v = ray_triangle_intersection(origin, direction, positions[c[0]], positions[c[1]],
-                                                         positions[c[2]])
-                if hit and t < max_t:
-                    return OCCLUDED, face
+            verdict, blocker = cell_verdict(buffers, view * cells + y * buffers.resolution + x, reach, positions,
+                                            indices, origin, direction, max_t, origin_face, only_cell)
+            if verdict == OCCLUDED:
+                return verdict, blocker
     return LIT, -1

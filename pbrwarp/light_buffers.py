@@ -112,6 +112,8 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     run_all(finish, [(v, row) for v in kept for row in range(0, RESOLUTION, rows)], threads)
     buffers = lb.LightBuffers()
     buffers.views = wp.array(views if views else [lb.Projection()], dtype=lb.Projection, device="cpu")
+    buffers.view_cells_per_radian = wp.array([cells_per_radian(view) for view in views] or [0.0], dtype=wp.float64,
+                                             device="cpu")
     buffers.light_views = wp.array(spans if spans else [(0, 0)], dtype=wp.vec2i, device="cpu")
     buffers.clearance = wp.array([min(c, 3e38) for c in clearances] or [0.0], dtype=float, device="cpu")
     buffers.cell_start, buffers.cell_faces, buffers.cell_near = cell_start, cell_faces, cell_near
@@ -133,6 +135,18 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     return buffers
 
 
+def cells_per_radian(view: lb.Projection) -> float:
+    """A bound, anywhere in a pinhole view, on the cells a direction crosses per radian it turns
+    (0 for a parallel view): the half-size over the tangent of the half-angle, times 1 + tan^2 of
+    the angle off the axis, at most 1 + tan_x^2 + tan_y^2 at the view's corners."""
+    if view.orthographic:
+        return 0.0
+    rows = np.array(view.to_camera, dtype=np.float64).reshape(3, 3)
+    tan_x, tan_y = 1.0 / np.linalg.norm(rows[0]), 1.0 / np.linalg.norm(rows[1])
+    stretch = 1.0 + tan_x * tan_x + tan_y * tan_y
+    return max(view.half_width / tan_x, view.half_height / tan_y) * stretch
+
+
 def _clearances(gpu, lights) -> list[float]:
     """Per light, a distance within which no triangle lies (of its position; infinite for a
     directional light): the nearest surface point's distance, less a margin for its rounding."""
@@ -152,6 +166,7 @@ def no_light_buffers() -> lb.LightBuffers:
     with shadow rays, every light's rays go to the BVH."""
     buffers = lb.LightBuffers()
     buffers.views = wp.array([lb.Projection()], dtype=lb.Projection, device="cpu")
+    buffers.view_cells_per_radian = wp.zeros(1, dtype=wp.float64, device="cpu")
     buffers.light_views = wp.array([(0, 0)], dtype=wp.vec2i, device="cpu")
     buffers.clearance = wp.zeros(1, dtype=float, device="cpu")
     buffers.cell_start = wp.zeros(2, dtype=wp.int32, device="cpu")

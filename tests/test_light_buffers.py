@@ -219,3 +219,37 @@ def test_shadow_cache_keeps_the_shadows_of_every_light(monkeypatch):
     bvh_only = render_checked(scene, cam, size=(160, 120))
     differs = ~np.all(np.isclose(with_buffers.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
     assert differs.mean() <= 1e-3
+
+
+@pytest.mark.parametrize("light", ["point", "narrow spot"])
+def test_cells_per_radian_bounds_how_fast_directions_cross_cells(light):
+    """The light buffer query's fast path keeps a ray in its origin's cell when the origin lies
+    farther inside it than the ray's angular drift times cells_per_radian: the bound must hold
+    for every pair of nearby directions anywhere in the view (here measured by finite
+    differences), and not be loose by more than the corners' stretch."""
+    from pbrwarp.light_buffers import RESOLUTION, cells_per_radian
+    from pbrwarp.raster import projection
+    from pbrwarp.shadow_maps import light_views
+
+    views = [projection(cam) for cam, _ in light_views(LIGHTS[light], np.zeros(3), 2.0, RESOLUTION, 1)]
+    rng = np.random.default_rng(5)
+    for view in views:
+        to_camera = np.array(view.to_camera, dtype=np.float64).reshape(3, 3)
+        to_world = np.linalg.inv(to_camera)
+        # directions through random points of the view, and ones turned by 1e-6 radians
+        screen = rng.uniform(0.0, 1.0, (20_000, 2)) * [view.half_width * 2.0, view.half_height * 2.0]
+        camera = np.column_stack([screen[:, 0] / view.half_width - 1.0, 1.0 - screen[:, 1] / view.half_height,
+                                  np.ones(len(screen))])
+        d = camera @ to_world.T
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        turn = np.cross(d, rng.normal(size=d.shape))
+        turn /= np.linalg.norm(turn, axis=1, keepdims=True)
+        angle = 1e-6
+        turned = d * np.cos(angle) + turn * np.sin(angle)
+        c = turned @ to_camera.T
+        moved = np.column_stack([(c[:, 0] / c[:, 2] + 1.0) * view.half_width,
+                                 (1.0 - c[:, 1] / c[:, 2]) * view.half_height])
+        rate = np.abs(moved - screen).max(axis=1) / angle
+        bound = cells_per_radian(view)
+        assert rate.max() <= bound
+        assert rate.max() >= bound / 4.0
