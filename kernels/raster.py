@@ -48,6 +48,12 @@ TILE_SIZE = wp.constant(32)
 # Triangles whose screen rectangle spans at most this many pixels are drawn as soon as they are
 # projected, with atomic minima, instead of being binned into tiles and read again.
 SMALL_TRIANGLE_PIXELS = wp.constant(16)
+# Bound, relative to the magnitude of its terms and per step, on how far an edge function stepped
+# along a row in float64 strays from its direct evaluation (a few units of rounding, 1.1e-16, per
+# addition), with room to spare.
+STEPPED_EDGE_ROUNDING = wp.constant(wp.float64(1.0e-15))
+# Rows at least this wide solve for their covered run of pixels before stepping along it.
+SPAN_MIN_WIDTH = wp.constant(8)
 # Vertices or triangles per Warp thread in projection and binning: a CPU launch calls the kernel
 # once per thread and copies its arguments each time, which cost more than one small triangle.
 ITEMS_PER_THREAD = wp.constant(64)
@@ -439,6 +445,32 @@ def covers_pixel_centre(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, px: int, py: i
 
 
 @wp.func
+def floor_division(n: wp.int64, d: wp.int64) -> wp.int64:
+    """floor(n / d) for d > 0 (Warp's integer division truncates towards zero)."""
+    q = n / d
+    if q * d > n:
+        q = q - wp.int64(1)
+    return q
+
+
+@wp.func
+def covered_steps(e: wp.int64, step: wp.int64, span: wp.vec2i) -> wp.vec2i:
+    """The steps k of ``span`` (first, last; empty when first > last) where the edge function
+    e + k step is >= 0: k >= -e / step rounded up for a rising edge, k <= e / -step rounded down
+    for a falling one."""
+    first = wp.int64(span[0])
+    last = wp.int64(span[1])
+    if step > wp.int64(0):
+        first = wp.max(first, -floor_division(e, step))
+    elif step < wp.int64(0):
+        last = wp.min(last, floor_division(e, -step))
+    elif e < wp.int64(0):
+        last = first - wp.int64(1)
+    first = wp.min(first, last + wp.int64(1))
+    return wp.vec2i(int(first), int(last))
+
+
+@wp.func
 def interpolated_depth(weights: wp.float64, double_area: wp.float64, orthographic: int) -> float:
     if orthographic != 0:
         return float(weights / double_area)
@@ -508,13 +540,26 @@ def rasterize_triangle(face: int, q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: 
         step0 = a0 * PIXEL
         step1 = a1 * PIXEL
         step2 = a2 * PIXEL
+        width = rect[2] - rect[0] + 1
         for py in range(rect[1], rect[3] + 1):
             sx = wp.int64(rect[0]) * PIXEL + HALF_PIXEL
             sy = wp.int64(py) * PIXEL + HALF_PIXEL
             e0 = a0 * sx + b0 * sy + c0
             e1 = a1 * sx + b1 * sy + c1
             e2 = a2 * sx + b2 * sy + c2
-            for px in range(rect[0], rect[2] + 1):
+            first = int(0)
+            last = width - 1
+            if width >= SPAN_MIN_WIDTH:
+                # wide rows: the covered run of pixels solved from the edge functions, so that a
+                # large triangle's uncovered pixels cost nothing
+                span = covered_steps(e0, step0, covered_steps(e1, step1, covered_steps(e2, step2,
+                                                                                       wp.vec2i(first, last))))
+                first = span[0]
+                last = span[1]
+                e0 = e0 + step0 * wp.int64(first)
+                e1 = e1 + step1 * wp.int64(first)
+                e2 = e2 + step2 * wp.int64(first)
+            for px in range(rect[0] + first, rect[0] + last + 1):
                 if (e0 | e1 | e2) >= wp.int64(0):
                     weights = w_bias + w0 * wp.float64(e0) + w1 * wp.float64(e1) + w2 * wp.float64(e2)
                     keep_nearest(out, py, px, visibility_entry(interpolated_depth(weights, double_area, orthographic),
@@ -600,6 +645,40 @@ def rasterize_homogeneous(face: int, c0: wp.vec3d, c1: wp.vec3d, c2: wp.vec3d, r
     own1 = owns_boundary_float(e1[0], e1[1])
     own2 = owns_boundary_float(e2[0], e2[1])
     zero = wp.float64(0.0)
+    if spp == 1:
+        # Pixel centres: each edge function is stepped along the row (g), whose rounding stays
+        # within `slop` of the direct evaluation's: a sample farther than that inside every edge
+        # is covered (its depth from g, as exact as the direct evaluation's up to that rounding),
+        # one farther outside one is not, and only samples that close to an edge are decided by
+        # the direct evaluation, which neighbours sharing the edge agree on.
+        width = wp.float64(rect[2] - rect[0] + 1)
+        x_far = wp.max(wp.abs(wp.float64(rect[0])), wp.abs(wp.float64(rect[2]) + wp.float64(1.0)))
+        y_far = wp.max(wp.abs(wp.float64(rect[1])), wp.abs(wp.float64(rect[3]) + wp.float64(1.0)))
+        slop = (STEPPED_EDGE_ROUNDING * (width + wp.float64(8.0))
+                * wp.vec3d(wp.abs(e0[0]) * x_far + wp.abs(e0[1]) * y_far + wp.abs(e0[2]),
+                           wp.abs(e1[0]) * x_far + wp.abs(e1[1]) * y_far + wp.abs(e1[2]),
+                           wp.abs(e2[0]) * x_far + wp.abs(e2[1]) * y_far + wp.abs(e2[2])))
+        for py in range(rect[1], rect[3] + 1):
+            y = wp.float64(py) + wp.float64(0.5)
+            x = wp.float64(rect[0]) + wp.float64(0.5)
+            g0 = e0[0] * x + e0[1] * y + e0[2]
+            g1 = e1[0] * x + e1[1] * y + e1[2]
+            g2 = e2[0] * x + e2[1] * y + e2[2]
+            for px in range(rect[0], rect[2] + 1):
+                if g0 > slop[0] and g1 > slop[1] and g2 > slop[2]:
+                    keep_nearest(out, py, px, visibility_entry(float(det / (g0 + g1 + g2)), face), False)
+                elif g0 >= -slop[0] and g1 >= -slop[1] and g2 >= -slop[2]:
+                    x = wp.float64(px) + wp.float64(0.5)
+                    f0 = e0[0] * x + e0[1] * y + e0[2]
+                    f1 = e1[0] * x + e1[1] * y + e1[2]
+                    f2 = e2[0] * x + e2[1] * y + e2[2]
+                    if ((f0 > zero or (f0 == zero and own0)) and (f1 > zero or (f1 == zero and own1))
+                            and (f2 > zero or (f2 == zero and own2))):
+                        keep_nearest(out, py, px, visibility_entry(float(det / (f0 + f1 + f2)), face), False)
+                g0 = g0 + e0[0]
+                g1 = g1 + e1[0]
+                g2 = g2 + e2[0]
+        return True
     for py in range(rect[1], rect[3] + 1):
         for col in range(rect[0] * spp, (rect[2] + 1) * spp):
             p = samples[py, col]

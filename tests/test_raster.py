@@ -12,7 +12,7 @@ import pbrwarp as pw
 import warp as wp
 from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.camera import CameraData, camera_ray_direction
-from pbrwarp.kernels.raster import ray_triangle_intersection, visible_triangle
+from pbrwarp.kernels.raster import covered_steps, ray_triangle_intersection, visible_triangle
 from pbrwarp.kernels.robust import RAY_FAR
 from pbrwarp.kernels.sampling import multi_jittered_sample
 from pbrwarp.meshes import ASSETS, bunny, icosphere
@@ -331,6 +331,37 @@ def test_tessellated_plane_filling_the_view_has_no_cracks_or_overlaps():
     assert (raster(geom, cam)[0] >= 0).all()
 
 
+@pytest.mark.parametrize("spp", [1, 4])
+def test_tessellated_ground_crossing_the_camera_plane_has_no_cracks_or_overlaps(spp):
+    """A jittered 17 x 17 vertex ground grid, both windings mixed, spanning 1e3 around an eye 0.7
+    above it: its triangles reach behind the camera or beyond the guard band, so all are
+    rasterized homogeneously (at spp 1 with edge functions stepped along rows, decided directly
+    near edges). Every sample is covered exactly once below the horizon, as the ray caster sees
+    it; cells 3 apart never touch, so each class of cells is rasterized at once and the counts
+    added."""
+    rng = np.random.default_rng(11)
+    u = 1e3 * np.sign(np.linspace(-1.0, 1.0, 17)) * np.linspace(-1.0, 1.0, 17) ** 2
+    x, z = np.meshgrid(u, u)
+    jitter = rng.uniform(-0.1, 0.1, size=(2, 17, 17)) * (1.0 + np.abs(x) + np.abs(z)) * 0.01
+    vertices = np.stack([x + jitter[0], np.full_like(x, -0.7), z + jitter[1]], axis=-1).reshape(-1, 3)
+    classes = {}
+    for r in range(16):
+        for c in range(16):
+            a, b, d, e = r * 17 + c, r * 17 + c + 1, (r + 1) * 17 + c, (r + 1) * 17 + c + 1
+            halves = [[a, b, e], [a, e, d]] if (r + c) % 2 else [[a, b, d], [b, e, d]]
+            for half, tri in enumerate(halves):
+                classes.setdefault((r % 3, c % 3, half), []).append(tri[::-1] if rng.random() < 0.5 else tri)
+    faces = [tri for group in classes.values() for tri in group]
+    geom = mesh_geometry(vertices, faces)
+    for forward in [(0.3, -0.4, -1.0), (-1.0, -0.1, 0.2), (0.1, -1.0, 0.05)]:
+        cam = camera_data(pw.Camera(eye=(0.05, 0.0, -0.03), forward=forward, up=(0.0, 1.0, 0.0), fov_y=90.0), 96, 64)
+        counts = sum((raster(geom, cam, spp=spp, faces=group)[0] >= 0).astype(int) for group in classes.values())
+        cast_ids, _, _ = cast(geom, cam, spp)
+        assert (counts <= 1).all()
+        assert ((counts == 1) == (cast_ids >= 0)).mean() >= 0.999
+        assert (counts[cast_ids >= 0] == 1).mean() >= 0.999
+
+
 def test_camera_inside_a_box_sees_every_wall():
     geom = Geometry(scene_of(trimesh.creation.box(extents=(2.0, 2.0, 2.0))))
     rng = np.random.default_rng(8)
@@ -527,3 +558,36 @@ def test_bad_input_is_rejected_before_warp():
         visibility_buffer(geom.positions, geom.indices, cam, out=wp.empty((64, 63), dtype=wp.uint64))
     with pytest.raises(pw.InputError):
         visibility_buffer(geom.positions, geom.indices, cam, cull_back_faces=wp.zeros(2, dtype=wp.uint8))
+
+
+@wp.kernel
+def covered_steps_of(e: wp.array(dtype=wp.int64), step: wp.array(dtype=wp.int64), span: wp.array(dtype=wp.vec2i),
+                     out: wp.array(dtype=wp.vec2i)):
+    i = wp.tid()
+    out[i] = covered_steps(e[i], step[i], span[i])
+
+
+def test_covered_steps_solve_the_edge_inequality_exactly():
+    """Wide rows step only over the run of pixels where e + k step >= 0: the solved run is
+    exactly the set of k a pixel-by-pixel test accepts (empty as first > last), for rising,
+    falling and flat edges, values on the boundary included."""
+    rng = np.random.default_rng(4)
+    n = 20_000
+    step = rng.integers(-5 * 4096, 5 * 4096, n, dtype=np.int64)
+    step[:1000] = 0
+    first = rng.integers(0, 40, n)
+    last = first + rng.integers(-1, 40, n)
+    e = rng.integers(-60 * 4096, 60 * 4096, n, dtype=np.int64)
+    # boundary cases: the edge function exactly 0 at some step
+    k0 = rng.integers(0, 60, n)
+    e[1000:3000] = -k0[1000:3000] * step[1000:3000]
+    out = wp.empty(n, dtype=wp.vec2i)
+    wp.launch(covered_steps_of, dim=n, inputs=[wp.array(e, dtype=wp.int64), wp.array(step, dtype=wp.int64),
+                                               wp.array(np.stack([first, last], 1).astype(np.int32), dtype=wp.vec2i), out])
+    solved = out.numpy()
+    for i in range(n):
+        ks = [k for k in range(first[i], last[i] + 1) if e[i] + k * step[i] >= 0]
+        if ks:
+            assert tuple(solved[i]) == (ks[0], ks[-1]), (e[i], step[i], first[i], last[i])
+        else:
+            assert solved[i][0] > solved[i][1], (e[i], step[i], first[i], last[i])
