@@ -104,6 +104,16 @@ def clear_row_span(out: wp.array2d(dtype=wp.uint64), row: int, first: int, count
     ...
 
 
+@wp.func_native("""
+    const char* base = (const char*)out.data + (size_t)row * out.strides[0] + sizeof(wp::uint64) * (size_t)first;
+    for (int offset = 0; offset < (int)(sizeof(wp::uint64) * count); offset += 64) __builtin_prefetch(base + offset, 1, 3);
+    """)
+def prefetch_row_span(out: wp.array2d(dtype=wp.uint64), row: int, first: int, count: int):
+    """Asks for the cache lines of out[row, first:first + count], to be written soon: a tile's
+    rows lie a whole image row apart, where the hardware prefetchers do not follow."""
+    ...
+
+
 @wp.func
 def visibility_entry(depth: float, triangle: int) -> wp.uint64:
     """The buffer entry of a hit; smaller entries are nearer (depth >= 0)."""
@@ -863,6 +873,9 @@ def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=
     tile_y0 = (tile / tiles_x) * TILE_SIZE
     tile_x1 = wp.min(tile_x0 + TILE_SIZE, proj.width) - 1
     tile_y1 = wp.min(tile_y0 + TILE_SIZE, proj.height) - 1
+    if bin_start[tile + 1] > bin_start[tile]:
+        for row in range(tile_y0, tile_y1 + 1):
+            prefetch_row_span(out, row, tile_x0 * spp, (tile_x1 - tile_x0 + 1) * spp)
     for k in range(bin_start[tile], bin_start[tile + 1]):
         slot = bins[k]
         face = binned_face[slot]
