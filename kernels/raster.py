@@ -862,13 +862,16 @@ def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=
                     binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
                     bin_start: wp.array(dtype=wp.int32), bins: wp.array(dtype=wp.int32),
                     samples: wp.array2d(dtype=wp.vec2), spp: int, cam: CameraData, proj: Projection,
-                    tiles_x: int, queue: wp.array(dtype=wp.int32), out: wp.array2d(dtype=wp.uint64)):
+                    tiles_x: int, tile_stride: int, queue: wp.array(dtype=wp.int32), out: wp.array2d(dtype=wp.uint64)):
     """Tiles taken one at a time from ``queue``, shared by every launch: draw every triangle of
-    its bin into it. A tile is taken by exactly one launch, so its samples need no atomics;
+    its bin into it. The k-th taken is tile k tile_stride modulo the tile count (tile_stride
+    coprime with it). A tile is taken by exactly one launch, so its samples need no atomics;
     launch with one thread per tile, as any launch may take them all."""
-    tile = take_next_item(queue)
-    if tile >= bin_start.shape[0] - 1:
+    k = take_next_item(queue)
+    tiles = bin_start.shape[0] - 1
+    if k >= tiles:
         return
+    tile = int((wp.int64(k) * wp.int64(tile_stride)) % wp.int64(tiles))
     tile_x0 = (tile % tiles_x) * TILE_SIZE
     tile_y0 = (tile / tiles_x) * TILE_SIZE
     tile_x1 = wp.min(tile_x0 + TILE_SIZE, proj.width) - 1
