@@ -5,8 +5,8 @@
 Samples per second (one per pixel, every pixel counted, hit or not) of
 - raster: pbrwarp.raster.visibility_buffer, whole frame (projection, binning, rasterization;
   the camera-independent sample positions are cached after the warm-up), on 1 and all threads;
-- ray cast: wp.mesh_query_ray from the eye per pixel, bands of rows on a thread pool as the
-  renderer launches them (pbrwarp.render.bands, LAUNCHES_PER_THREAD per thread);
+- ray cast: wp.mesh_query_ray from the eye per pixel, one launch per thread taking rows from a
+  shared counter as the renderer's do (pbrwarp.render.ROWS_PER_TAKE at a time);
 - Open3D's RaycastingScene.cast_rays (Embree, all cores) on the same rays, precomputed,
   when open3d is installed.
 The raster also with every back face culled, as pw.render draws single-sided meshes (glTF's
@@ -43,32 +43,30 @@ from pbrwarp.kernels.loading import load_for_cpu  # noqa: E402
 from pbrwarp.kernels.robust import RAY_FAR  # noqa: E402
 from pbrwarp.meshes import asset, bunny, icosphere  # noqa: E402
 from pbrwarp.raster import decode, visibility_buffer  # noqa: E402
-from pbrwarp.parallel import thread_pool  # noqa: E402
-from pbrwarp.render import LAUNCHES_PER_THREAD, _camera_data, bands  # noqa: E402
+from pbrwarp.kernels.work_queue import take_next_item  # noqa: E402
+from pbrwarp.parallel import run_all  # noqa: E402
+from pbrwarp.render import ROWS_PER_TAKE, _camera_data  # noqa: E402
 
 
 @wp.kernel(enable_backward=False)
-def ray_cast_band(mesh: wp.uint64, cam: CameraData, y0: int, out_face: wp.array2d(dtype=wp.int32)):
-    """Nearest triangle through each pixel centre of rows y0..., as render_tile finds it."""
-    i = wp.tid()
-    px = i % cam.width
-    py = y0 + i / cam.width
-    q = wp.mesh_query_ray(mesh, cam.eye, camera_ray_direction(cam, float(px) + 0.5, float(py) + 0.5), RAY_FAR)
-    out_face[py, px] = wp.where(q.result, q.face, -1)
+def ray_cast_rows(mesh: wp.uint64, cam: CameraData, rows: wp.array(dtype=wp.int32), rows_per_take: int,
+                  out_face: wp.array2d(dtype=wp.int32)):
+    """Nearest triangle through each pixel centre, as render_tile finds it, rows_per_take rows at
+    a time taken from the counter ``rows`` until none are left."""
+    first_row = take_next_item(rows) * rows_per_take
+    while first_row < cam.height:
+        for py in range(first_row, wp.min(first_row + rows_per_take, cam.height)):
+            for px in range(cam.width):
+                q = wp.mesh_query_ray(mesh, cam.eye, camera_ray_direction(cam, float(px) + 0.5, float(py) + 0.5),
+                                      RAY_FAR)
+                out_face[py, px] = wp.where(q.result, q.face, -1)
+        first_row = take_next_item(rows) * rows_per_take
 
 
 def ray_cast(geom, cam, threads, out):
-    work = bands(cam.width, cam.height, LAUNCHES_PER_THREAD * threads)
-
-    def launch(band):
-        _, y0, width, rows = band
-        wp.launch(ray_cast_band, dim=width * rows, inputs=[geom.mesh.id, cam, y0, out], device="cpu")
-
-    if threads == 1:
-        for band in work:
-            launch(band)
-    else:
-        list(thread_pool(threads).map(launch, work))
+    rows = wp.zeros(1, dtype=wp.int32, device="cpu")
+    run_all(lambda _: wp.launch(ray_cast_rows, dim=1, inputs=[geom.mesh.id, cam, rows, ROWS_PER_TAKE, out],
+                                device="cpu"), range(threads), threads)
 
 
 def open3d_scene(mesh):
@@ -122,7 +120,7 @@ def bench_case(label, mesh, size, repeats, threads_all):
     row["rasterization_ms"] = 1e3 * statistics.median(t["raster"] for t in splits)
 
     faces = wp.empty((size, size), dtype=wp.int32, device="cpu")
-    load_for_cpu(ray_cast_band)
+    load_for_cpu(ray_cast_rows)
     row[f"raycast_ms_{threads_all}t"] = 1e3 * median_time(lambda: ray_cast(geometry, cam, threads_all, faces), repeats)
     ids, _ = decode(raster(threads_all))
     row["coverage"] = float((ids >= 0).mean())

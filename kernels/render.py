@@ -20,6 +20,7 @@ from .robust import RAY_FAR, clamp_to_float32_max, SHADOW_RAY_SHORTENING, offset
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData
 from .shadow_map import ShadowMaps, shadow_map_visibility
+from .work_queue import take_next_item
 from .surface import MAX_PASS_THROUGH, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
 
 wp.set_module_options({"enable_backward": False})
@@ -188,17 +189,15 @@ def render_kernel(features):
             return -1, 0.0, 0.0
         return q.face, q.u, q.v
 
-    @wp.kernel(enable_backward=False, module="unique")
-    def render_tile(
+    @wp.func
+    def render_row(
         scene: SceneData,
         cam: CameraData,
         spp: int,
         grid_m: int,
         grid_n: int,
         seed: int,
-        x0: int,
-        y0: int,
-        tile_width: int,
+        py: int,
         background: wp.vec3,
         out_rgb: wp.array2d(dtype=wp.vec3),
         out_alpha: wp.array2d(dtype=float),
@@ -210,11 +209,9 @@ def render_kernel(features):
         env: EnvironmentData,
         dfg: wp.array2d(dtype=wp.vec2),
     ):
-        # one row per thread index: Warp's CPU code copies the kernel's arguments (structs of
-        # arrays, about a kilobyte) for every index, which per pixel cost ~10% of a frame
-        py = y0 + wp.tid()
+        """Row py of the image, sample by sample."""
         cache = ShadowCache(-1)
-        for px in range(x0, x0 + tile_width):
+        for px in range(cam.width):
             pixel_seed = seed + py * cam.width + px
             radiance = wp.vec3(0.0)
             normal_sum = wp.vec3(0.0)
@@ -270,5 +267,38 @@ def render_kernel(features):
                 else:
                     out_depth[py, px] = wp.inf
                     out_normal[py, px] = wp.vec3(0.0)
+
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def render_tile(
+        scene: SceneData,
+        cam: CameraData,
+        spp: int,
+        grid_m: int,
+        grid_n: int,
+        seed: int,
+        rows: wp.array(dtype=wp.int32),
+        rows_per_take: int,
+        background: wp.vec3,
+        out_rgb: wp.array2d(dtype=wp.vec3),
+        out_alpha: wp.array2d(dtype=float),
+        out_depth: wp.array2d(dtype=float),
+        out_normal: wp.array2d(dtype=wp.vec3),
+        vbuffer: wp.array2d(dtype=wp.uint64),
+        maps: ShadowMaps,
+        buffers: LightBuffers,
+        env: EnvironmentData,
+        dfg: wp.array2d(dtype=wp.vec2),
+    ):
+        # Launched once per thread: takes rows_per_take rows at a time from the counter ``rows``,
+        # shared by every launch, until none are left, so that the threads finish together. (Not
+        # a thread index per pixel or row: Warp's CPU code copies the kernel's arguments, structs
+        # of arrays of about a kilobyte, for every index, which per pixel cost ~10% of a frame.)
+        first_row = take_next_item(rows) * rows_per_take
+        while first_row < cam.height:
+            for py in range(first_row, wp.min(first_row + rows_per_take, cam.height)):
+                render_row(scene, cam, spp, grid_m, grid_n, seed, py, background, out_rgb, out_alpha, out_depth,
+                           out_normal, vbuffer, maps, buffers, env, dfg)
+            first_row = take_next_item(rows) * rows_per_take
 
     return render_tile

@@ -1,10 +1,12 @@
-"""The render entry point: upload the scene, pick the kernel for its features, launch bands of rows on a
-thread pool (Warp CPU launches run on one thread and release the GIL)."""
+"""The render entry point: upload the scene, pick the kernel for its features, launch it once per
+thread from a thread pool (Warp CPU launches run on one thread and release the GIL), every launch
+taking rows from one shared counter."""
 
 from __future__ import annotations
 
 import functools
 import math
+import threading
 
 import numpy as np
 import warp as wp
@@ -17,7 +19,7 @@ from .features import Features, decide, describe, scene_features
 from .frame import Frame
 from .gpu_scene import back_face_culling, upload
 from .ibl import IBL, ibl_for_quality
-from .parallel import run, thread_count
+from .parallel import run_all, thread_count
 from .raster import reused_buffer, visibility_buffer
 from .light_buffers import build as build_light_buffers, no_light_buffers
 from .shadow_maps import build as build_shadow_maps, no_shadow_maps, shadow_mode
@@ -28,10 +30,13 @@ from pbrwarp.kernels.dfg import dfg_table
 from pbrwarp.kernels.ibl import EnvironmentData
 from pbrwarp.kernels.render import render_kernel
 
-# Launches per thread, each a contiguous band of rows. In trials on 2 cores (the bench/kernels.py
-# scenes) 4 per thread scaled best: more bands add GIL-held Python per launch, fewer leave a
-# thread idle at the end, and interleaving the threads' rows loses ray coherence.
-LAUNCHES_PER_THREAD = 4
+# One launch per thread, each taking ROWS_PER_TAKE rows at a time from one shared counter until
+# none are left, so that the threads finish together: with four fixed bands of rows per thread,
+# one thread sat idle for ~7 ms of a 60 ms 1024² frame whose rows cost unevenly (development
+# trial, bench/frames.py's icosphere). Progress is read off the counter.
+ROWS_PER_TAKE = 4
+# Seconds between progress bar updates.
+PROGRESS_INTERVAL = 0.1
 
 
 def _environment_arguments(scene: Scene, threads):
@@ -71,12 +76,6 @@ def _camera_data(camera: Camera, width: int, height: int) -> CameraData:
     return data
 
 
-def bands(width: int, height: int, count: int):
-    """(x0, y0, tile_width, tile_height) of about ``count`` bands of whole rows covering the image."""
-    rows = math.ceil(height / min(count, height))
-    return [(0, y0, width, min(rows, height - y0)) for y0 in range(0, height, rows)]
-
-
 def _progress_bar(total: int, enabled):
     if enabled is False:
         return None
@@ -85,7 +84,33 @@ def _progress_bar(total: int, enabled):
     except ImportError:
         return None
     # delay: the bar appears only for renders that take more than about a second
-    return tqdm(total=total, unit="launch", desc="render", delay=1.0, leave=False)
+    return tqdm(total=total, unit="row", desc="render", delay=1.0, leave=False)
+
+
+def _run_with_progress(launch, workers: int, rows_taken: wp.array, height: int, progress):
+    """launch(k) for k in range(workers) on as many threads, a progress bar (if enabled and tqdm
+    is installed) following the rows taken from ``rows_taken`` meanwhile."""
+    bar = _progress_bar(height, progress)
+    if bar is None:
+        run_all(launch, range(workers), workers)
+        return
+    done = threading.Event()
+
+    def follow():
+        taken = rows_taken.numpy()  # a view: the kernels' counter as they advance it
+        finished = False
+        while not finished:
+            finished = done.wait(PROGRESS_INTERVAL)
+            bar.update(min(int(taken[0]) * ROWS_PER_TAKE, height) - bar.n)
+
+    follower = threading.Thread(target=follow, daemon=True)
+    follower.start()
+    try:
+        run_all(launch, range(workers), workers)
+    finally:
+        done.set()
+        follower.join()
+        bar.close()
 
 
 def render(
@@ -179,24 +204,16 @@ def render(
     else:
         vbuffer = wp.empty((1, 1), dtype=wp.uint64, device="cpu")
 
-    def launch(band):
-        x0, y0, tile_width, tile_height = band
-        wp.launch(kernel, dim=tile_height, device="cpu",
-                  inputs=[gpu.data, cam, spp, grid_m, grid_n, seed, x0, y0, tile_width, bg,
+    rows_taken = wp.zeros(1, dtype=wp.int32, device="cpu")
+
+    def launch(_):
+        wp.launch(kernel, dim=1, device="cpu",
+                  inputs=[gpu.data, cam, spp, grid_m, grid_n, seed, rows_taken, ROWS_PER_TAKE, bg,
                           out_rgb, out_alpha, out_depth, out_normal, vbuffer, maps, buffers, env, dfg])
 
-    workers = thread_count(threads)
-    work = bands(width, height, LAUNCHES_PER_THREAD * workers)
-    bar = _progress_bar(len(work), progress)
     # compile or load the kernel once, before many threads would all try at once
     load_for_cpu(kernel)
-    try:
-        for _ in run(launch, work, workers):
-            if bar is not None:
-                bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
+    _run_with_progress(launch, thread_count(threads), rows_taken, height, progress)
     return Frame(
         rgb=out_rgb.numpy().reshape(height, width, 3),
         depth=out_depth.numpy() if features.aovs else None,

@@ -233,6 +233,39 @@ def test_threads_one_and_many_give_identical_images():
         assert np.array_equal(getattr(one, name), getattr(many, name)), name
 
 
+@pytest.mark.parametrize("threads", [1, 3])
+def test_progress_bar_follows_every_row(threads, monkeypatch):
+    """The threads take rows from one counter; the progress bar reads it while they render and
+    ends at the image height (and is closed), whatever the thread count."""
+    import sys
+
+    bars = []
+
+    class Bar:
+        def __init__(self, total):
+            self.total, self.n, self.closed = total, 0, False
+            bars.append(self)
+
+        def update(self, k):
+            assert k >= 0
+            self.n += k
+
+        def close(self):
+            self.closed = True
+
+    render_module = sys.modules["pbrwarp.render"]
+    monkeypatch.setattr(render_module, "_progress_bar", lambda total, enabled: Bar(total))
+    monkeypatch.setattr(render_module, "PROGRESS_INTERVAL", 0.001)
+    scene = pw.Scene()
+    scene.add_mesh(trimesh.creation.icosphere(subdivisions=3), pw.Material())
+    scene.add_light(pw.PointLight(position=(2, 3, 2), intensity=30.0))
+    frame = pw.render(scene, width=64, height=203, spp=16, threads=threads, progress=True)
+    assert frame.rgb.shape == (203, 64, 3)
+    (bar,) = bars
+    assert bar.total == 203 and bar.closed
+    assert bar.n == 203
+
+
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
 def test_no_shadow_acne_on_lit_curved_and_flat_surfaces(scale):
     """Every pixel whose geometric normal faces the light must be unshadowed (sphere on a floor
