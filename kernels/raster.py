@@ -52,8 +52,10 @@ SMALL_TRIANGLE_PIXELS = wp.constant(16)
 # along a row in float64 strays from its direct evaluation (a few units of rounding, 1.1e-16, per
 # addition), with room to spare.
 STEPPED_EDGE_ROUNDING = wp.constant(wp.float64(1.0e-15))
-# Rows at least this wide solve for their covered run of pixels before stepping along it.
-SPAN_MIN_WIDTH = wp.constant(8)
+# Rows at least this wide solve for their covered run of pixels before stepping along it: the
+# solve (three int64 divisions) pays off only where it skips many uncovered pixels, and in
+# development trials rows of 8 made dense meshes' small triangles slower.
+SPAN_MIN_WIDTH = wp.constant(16)
 # Vertices or triangles per Warp thread in projection and binning: a CPU launch calls the kernel
 # once per thread and copies its arguments each time, which cost more than one small triangle.
 ITEMS_PER_THREAD = wp.constant(64)
