@@ -263,7 +263,10 @@ def render_kernel(features):
             if wp.static(f.aovs):
                 if hits > 0:
                     out_depth[py, px] = depth
-                    out_normal[py, px] = safe_normalize(normal_sum, wp.vec3(0.0))
+                    if hits == 1:
+                        out_normal[py, px] = normal_sum  # one unit normal: exactly it
+                    else:
+                        out_normal[py, px] = safe_normalize(normal_sum, wp.vec3(0.0))
                 else:
                     out_depth[py, px] = wp.inf
                     out_normal[py, px] = wp.vec3(0.0)
