@@ -65,9 +65,9 @@ def _scratch_array(arrays: dict, kind: str, length: int, dtype) -> wp.array:
 # cores by bench/visibility.py (bench/results/visibility.md, least squares weighted by 1/time):
 # raster seconds ~ RASTER_SECONDS_PER_TRIANGLE * triangles + RASTER_SECONDS_PER_SAMPLE * samples,
 # ray cast seconds ~ RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE * samples * log2(triangles).
-RASTER_SECONDS_PER_TRIANGLE = 14.4e-9
-RASTER_SECONDS_PER_SAMPLE = 3.59e-9
-RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 4.84e-9
+RASTER_SECONDS_PER_TRIANGLE = 13.8e-9
+RASTER_SECONDS_PER_SAMPLE = 3.78e-9
+RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 4.52e-9
 
 KERNELS = (rk.sample_positions, rk.clear_rows, rk.project_vertices, rk.count_tiles, rk.bin_offsets, rk.fill_bins,
            rk.rasterize_tiles)
