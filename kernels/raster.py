@@ -628,6 +628,20 @@ def homogeneous_edge(n: wp.vec3d, proj: Projection) -> wp.vec3d:
 
 
 @wp.func
+def homogeneous_coverage(e0: wp.vec3d, e1: wp.vec3d, e2: wp.vec3d, own0: bool, own1: bool, own2: bool,
+                         x: wp.float64, y: wp.float64):
+    """(covered, sum of the edge functions) of the sample (x, y), the edge functions evaluated
+    directly: a sample exactly on an edge is covered if its triangle owns the edge."""
+    f0 = e0[0] * x + e0[1] * y + e0[2]
+    f1 = e1[0] * x + e1[1] * y + e1[2]
+    f2 = e2[0] * x + e2[1] * y + e2[2]
+    zero = wp.float64(0.0)
+    covered = ((f0 > zero or (f0 == zero and own0)) and (f1 > zero or (f1 == zero and own1))
+               and (f2 > zero or (f2 == zero and own2)))
+    return covered, f0 + f1 + f2
+
+
+@wp.func
 def rasterize_homogeneous(face: int, c0: wp.vec3d, c1: wp.vec3d, c2: wp.vec3d, rect: wp.vec4i,
                           samples: wp.array2d(dtype=wp.vec2), spp: int, proj: Projection,
                           out: wp.array2d(dtype=wp.uint64)) -> bool:
@@ -658,7 +672,6 @@ def rasterize_homogeneous(face: int, c0: wp.vec3d, c1: wp.vec3d, c2: wp.vec3d, r
     own0 = owns_boundary_float(e0[0], e0[1])
     own1 = owns_boundary_float(e1[0], e1[1])
     own2 = owns_boundary_float(e2[0], e2[1])
-    zero = wp.float64(0.0)
     if spp == 1:
         # Pixel centres: each edge function is stepped along the row (g), whose rounding stays
         # within `slop` of the direct evaluation's: a sample farther than that inside every edge
@@ -682,13 +695,10 @@ def rasterize_homogeneous(face: int, c0: wp.vec3d, c1: wp.vec3d, c2: wp.vec3d, r
                 if g0 > slop[0] and g1 > slop[1] and g2 > slop[2]:
                     keep_nearest(out, py, px, visibility_entry(float(det / (g0 + g1 + g2)), face), False)
                 elif g0 >= -slop[0] and g1 >= -slop[1] and g2 >= -slop[2]:
-                    x = wp.float64(px) + wp.float64(0.5)
-                    f0 = e0[0] * x + e0[1] * y + e0[2]
-                    f1 = e1[0] * x + e1[1] * y + e1[2]
-                    f2 = e2[0] * x + e2[1] * y + e2[2]
-                    if ((f0 > zero or (f0 == zero and own0)) and (f1 > zero or (f1 == zero and own1))
-                            and (f2 > zero or (f2 == zero and own2))):
-                        keep_nearest(out, py, px, visibility_entry(float(det / (f0 + f1 + f2)), face), False)
+                    covered, weights = homogeneous_coverage(e0, e1, e2, own0, own1, own2,
+                                                            wp.float64(px) + wp.float64(0.5), y)
+                    if covered:
+                        keep_nearest(out, py, px, visibility_entry(float(det / weights), face), False)
                 g0 = g0 + e0[0]
                 g1 = g1 + e1[0]
                 g2 = g2 + e2[0]
@@ -696,14 +706,9 @@ def rasterize_homogeneous(face: int, c0: wp.vec3d, c1: wp.vec3d, c2: wp.vec3d, r
     for py in range(rect[1], rect[3] + 1):
         for col in range(rect[0] * spp, (rect[2] + 1) * spp):
             p = samples[py, col]
-            x = wp.float64(p[0])
-            y = wp.float64(p[1])
-            f0 = e0[0] * x + e0[1] * y + e0[2]
-            f1 = e1[0] * x + e1[1] * y + e1[2]
-            f2 = e2[0] * x + e2[1] * y + e2[2]
-            if ((f0 > zero or (f0 == zero and own0)) and (f1 > zero or (f1 == zero and own1))
-                    and (f2 > zero or (f2 == zero and own2))):
-                keep_nearest(out, py, col, visibility_entry(float(det / (f0 + f1 + f2)), face), False)
+            covered, weights = homogeneous_coverage(e0, e1, e2, own0, own1, own2, wp.float64(p[0]), wp.float64(p[1]))
+            if covered:
+                keep_nearest(out, py, col, visibility_entry(float(det / weights), face), False)
     return True
 
 

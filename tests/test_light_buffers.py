@@ -80,6 +80,16 @@ LIGHTS = {
 }
 
 
+def assert_same_shadows_as_the_bvh(scene, cam, size, monkeypatch):
+    """The image with light buffers (and the shadow cache) equals, but for <= 0.1% of pixels, the
+    one whose shadow rays all go through Warp's BVH."""
+    with_buffers = render_checked(scene, cam, size=size)
+    monkeypatch.setattr(sys.modules["pbrwarp.render"], "build_light_buffers", lambda *args: no_light_buffers())
+    bvh_only = render_checked(scene, cam, size=size)
+    differs = ~np.all(np.isclose(with_buffers.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
+    assert differs.mean() <= 1e-3
+
+
 def moved(light, offset):
     """``light`` with its position moved by ``offset`` (directional lights unchanged)."""
     if not hasattr(light, "position"):
@@ -166,11 +176,7 @@ def test_buffers_are_reused_until_lights_or_geometry_move():
 def test_rendered_shadows_do_not_depend_on_the_light_buffers(light, monkeypatch):
     scene = scene_with_floor(bunny() if ASSETS.exists() else icosphere(5), LIGHTS[light])
     cam = pw.Camera.look_at(eye=(0.0, 0.8, 3.2), target=(0.0, -0.2, 0.0))
-    with_buffers = render_checked(scene, cam, size=(160, 120))
-    monkeypatch.setattr(sys.modules["pbrwarp.render"], "build_light_buffers", lambda *args: no_light_buffers())
-    bvh_only = render_checked(scene, cam, size=(160, 120))
-    differs = ~np.all(np.isclose(with_buffers.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
-    assert differs.mean() <= 1e-3
+    assert_same_shadows_as_the_bvh(scene, cam, (160, 120), monkeypatch)
 
 
 def test_a_light_over_the_entry_budget_leaves_its_rays_to_the_bvh(monkeypatch):
@@ -195,11 +201,7 @@ def test_every_asset_renders_the_same_shadows_with_and_without_light_buffers(pat
     scene.add_light(pw.PointLight(position=tuple(centre + np.array([0.6, 1.2, 0.8]) * radius),
                                   intensity=50.0 * radius * radius))
     scene.add_light(pw.DirectionalLight(direction=(-0.4, -1.0, -0.3), intensity=2.0))
-    with_buffers = render_checked(scene, None, size=(96, 72))
-    monkeypatch.setattr(sys.modules["pbrwarp.render"], "build_light_buffers", lambda *args: no_light_buffers())
-    bvh_only = render_checked(scene, None, size=(96, 72))
-    differs = ~np.all(np.isclose(with_buffers.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
-    assert differs.mean() <= 1e-3
+    assert_same_shadows_as_the_bvh(scene, None, (96, 72), monkeypatch)
 
 
 def test_shadow_cache_keeps_the_shadows_of_every_light(monkeypatch):
@@ -214,11 +216,7 @@ def test_shadow_cache_keeps_the_shadows_of_every_light(monkeypatch):
         scene.add_light(pw.PointLight(position=(2.5 * np.cos(angle), 2.0 + 0.3 * k, 2.5 * np.sin(angle)),
                                       intensity=10.0))
     cam = pw.Camera.look_at(eye=(0.0, 0.8, 3.2), target=(0.0, -0.2, 0.0))
-    with_buffers = render_checked(scene, cam, size=(160, 120))
-    monkeypatch.setattr(sys.modules["pbrwarp.render"], "build_light_buffers", lambda *args: no_light_buffers())
-    bvh_only = render_checked(scene, cam, size=(160, 120))
-    differs = ~np.all(np.isclose(with_buffers.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
-    assert differs.mean() <= 1e-3
+    assert_same_shadows_as_the_bvh(scene, cam, (160, 120), monkeypatch)
 
 
 @pytest.mark.parametrize("light", ["point", "narrow spot"])

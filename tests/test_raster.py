@@ -307,6 +307,21 @@ def strictly_inside_convex(xy, polygon):
     return inside
 
 
+def grid_triangle_classes(n, rng):
+    """The triangles of an n x n vertex grid (row-major vertex ids), each cell split along
+    alternating diagonals, half of them wound backwards, grouped by (row % 3, column % 3, half):
+    triangles of one class never touch, so a class can be rasterized at once and its coverage
+    counts added to the others'."""
+    classes = {}
+    for r in range(n - 1):
+        for c in range(n - 1):
+            a, b, d, e = r * n + c, r * n + c + 1, (r + 1) * n + c, (r + 1) * n + c + 1
+            halves = [[a, b, e], [a, e, d]] if (r + c) % 2 else [[a, b, d], [b, e, d]]
+            for half, tri in enumerate(halves):
+                classes.setdefault((r % 3, c % 3, half), []).append(tri[::-1] if rng.random() < 0.5 else tri)
+    return classes
+
+
 def test_tessellated_plane_filling_the_view_has_no_cracks_or_overlaps():
     """A 33 x 33 vertex grid, jittered, bent, both windings mixed, fills the view: every sample is
     covered by exactly one triangle. Triangles of cells 3 apart never touch, so each of the 18
@@ -316,13 +331,7 @@ def test_tessellated_plane_filling_the_view_has_no_cracks_or_overlaps():
     x, y = np.meshgrid(u, u)
     jitter = rng.uniform(-0.02, 0.02, size=(2, 33, 33))
     vertices = np.stack([x + jitter[0], y + jitter[1], -1.0 - 0.05 * (x * x + y * y) - 0.03 * x * y], axis=-1).reshape(-1, 3)
-    classes = {}
-    for r in range(32):
-        for c in range(32):
-            a, b, d, e = r * 33 + c, r * 33 + c + 1, (r + 1) * 33 + c, (r + 1) * 33 + c + 1
-            halves = [[a, b, e], [a, e, d]] if (r + c) % 2 else [[a, b, d], [b, e, d]]
-            for half, tri in enumerate(halves):
-                classes.setdefault((r % 3, c % 3, half), []).append(tri[::-1] if rng.random() < 0.5 else tri)
+    classes = grid_triangle_classes(33, rng)
     faces = [tri for group in classes.values() for tri in group]
     geom = mesh_geometry(vertices, faces)
     cam = head_on(48, 48)
@@ -344,13 +353,7 @@ def test_tessellated_ground_crossing_the_camera_plane_has_no_cracks_or_overlaps(
     x, z = np.meshgrid(u, u)
     jitter = rng.uniform(-0.1, 0.1, size=(2, 17, 17)) * (1.0 + np.abs(x) + np.abs(z)) * 0.01
     vertices = np.stack([x + jitter[0], np.full_like(x, -0.7), z + jitter[1]], axis=-1).reshape(-1, 3)
-    classes = {}
-    for r in range(16):
-        for c in range(16):
-            a, b, d, e = r * 17 + c, r * 17 + c + 1, (r + 1) * 17 + c, (r + 1) * 17 + c + 1
-            halves = [[a, b, e], [a, e, d]] if (r + c) % 2 else [[a, b, d], [b, e, d]]
-            for half, tri in enumerate(halves):
-                classes.setdefault((r % 3, c % 3, half), []).append(tri[::-1] if rng.random() < 0.5 else tri)
+    classes = grid_triangle_classes(17, rng)
     faces = [tri for group in classes.values() for tri in group]
     geom = mesh_geometry(vertices, faces)
     for forward in [(0.3, -0.4, -1.0), (-1.0, -0.1, 0.2), (0.1, -1.0, 0.05)]:
