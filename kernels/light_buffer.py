@@ -450,6 +450,16 @@ def nearest_surface_distance(mesh: wp.uint64, points: wp.array(dtype=wp.vec3), o
 
 # ---------------------------------------------------------------------- shadow rays
 @wp.func
+def segment_meets_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), face: int,
+                           origin: wp.vec3, direction: wp.vec3, max_t: float) -> bool:
+    """Whether origin + t direction, 0 <= t < max_t, meets triangle ``face``, by the ray caster's
+    own ray-triangle test."""
+    c = triangle_corners(indices, face)
+    hit, t, u, v = ray_triangle_intersection(origin, direction, positions[c[0]], positions[c[1]], positions[c[2]])
+    return hit and t < max_t
+
+
+@wp.func
 def cell_verdict(buffers: LightBuffers, e: int, reach: wp.float64, positions: wp.array(dtype=wp.vec3),
                  indices: wp.array(dtype=wp.int32), origin: wp.vec3, direction: wp.vec3, max_t: float,
                  origin_face: int, only_cell: bool):
@@ -469,10 +479,7 @@ def cell_verdict(buffers: LightBuffers, e: int, reach: wp.float64, positions: wp
             break
         face = buffers.cell_faces[k]
         if face != origin_face:
-            c = triangle_corners(indices, face)
-            hit, t, u, v = ray_triangle_intersection(origin, direction, positions[c[0]], positions[c[1]],
-                                                     positions[c[2]])
-            if hit and t < max_t:
+            if segment_meets_triangle(positions, indices, face, origin, direction, max_t):
                 return OCCLUDED, face
     return LIT, -1
 

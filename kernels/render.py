@@ -12,7 +12,7 @@ from .brdf import brdf_for
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
 from .light_buffer import (LightBuffers, UNDECIDED, OCCLUDED, SHADOW_CACHE_LIGHTS, ShadowCache, light_buffer_occlusion,
-                           triangle_is_clear)
+                           segment_meets_triangle, triangle_is_clear)
 from .lights import LightSample, light_sampler
 from .normal_mapping import perturb_normal
 from .raster import ray_triangle_intersection, triangle_corners, visible_triangle
@@ -134,10 +134,7 @@ def render_kernel(features):
         verdict = UNDECIDED
         blocker = int(-1)
         if cached >= 0:
-            c = triangle_corners(scene.indices, cached)
-            hit, t, u, v = ray_triangle_intersection(origin, direction, scene.positions[c[0]], scene.positions[c[1]],
-                                                     scene.positions[c[2]])
-            if hit and t < max_t:
+            if segment_meets_triangle(scene.positions, scene.indices, cached, origin, direction, max_t):
                 verdict = OCCLUDED
                 blocker = cached
         if verdict == UNDECIDED:

@@ -84,8 +84,8 @@ def _tile_stride(tiles: int) -> int:
     """The step between tiles taken one after the other (rasterize_tiles): about half the tile
     count, coprime with it, so that threads taking tiles at the same time draw far-apart ones.
     Neighbouring tiles' rows share pages, and the cores' prefetchers, fetching each other's lines,
-    made two threads drawing neighbours do half as much again work (development trial, frames
-    icosphere scene: 5.7 -> 4.1 ms of rasterization per thread on 2 threads)."""
+    slowed two threads drawing neighbours (interleaved development A/B, bench/frames.py's icosphere
+    scene at 1024² on 2 threads: a whole call 10.4 -> 9.0 ms)."""
     stride = tiles // 2 + 1
     while math.gcd(stride, tiles) != 1:
         stride += 1
