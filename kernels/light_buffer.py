@@ -9,7 +9,10 @@ Most shadow rays need not even that: where every triangle a cell lists nearer th
 lies on or behind T's plane (seen from the light), no ray leaving T's lit side through that cell
 can meet one, so T's entry there is marked clear; a triangle clear in every cell its rays can
 land in (pinhole views) is marked clear of the light, and its rays are lit without a query. On a
-convex surface that is every triangle facing the light.
+convex surface that is every triangle facing the light. On a noisy scanned one, neighbours across
+concave creases rise in front of each other's planes; there a triangle's interior (the triangle
+shrunk about its centroid) is marked clear where no listed triangle comes near the pyramid between
+it and the light, and rays leaving that interior are lit without a query too.
 
 Views are the shadow maps' (kernels/shadow_map.py): a cube of six for point lights and wide spot
 lights, one pinhole view for narrow spots, a parallel view behind the scene for directional lights,
@@ -76,6 +79,20 @@ ORIGIN_DEVIATION = wp.constant(wp.float64(1.0e-5))
 # triangle that blocked the previous shadow ray of the row, tested before the light buffer is
 # asked, since neighbouring pixels are mostly shadowed by the same triangle.
 SHADOW_CACHE_LIGHTS = wp.constant(4)
+# triangle_clear codes: no mark, every ray of the triangle clear, or (INTERIOR_CLEAR + k) the rays
+# leaving its part shrunk about its centroid by INTERIOR_SHRINKS[k] clear (see interior_is_clear).
+NOT_CLEAR = wp.constant(wp.uint8(0))
+CLEAR = wp.constant(wp.uint8(1))
+INTERIOR_CLEAR = wp.constant(wp.uint8(2))
+# Shrinks tried in turn, the smallest first: a ray whose hit point's barycentric coordinates are
+# all at least s / 3 leaves the triangle shrunk by s (it keeps 1 - s of each corner's distance to
+# the centroid).
+INTERIOR_LEVELS = 6
+InteriorShrinks = wp.types.vector(length=INTERIOR_LEVELS, dtype=wp.float32)
+INTERIOR_SHRINKS = wp.constant(InteriorShrinks(0.02, 0.05, 0.1, 0.2, 0.35, 0.6))
+# Most triangles a cell may list nearer to the light than a triangle before its interior is not
+# tried (bounds the build's work on degenerate scenes).
+MAX_INTERIOR_CHECKS = wp.constant(256)
 ShadowCache = wp.types.vector(length=4, dtype=wp.int32)
 
 
@@ -98,8 +115,10 @@ class LightBuffers:
     # 1 where the entry's triangle is clear in its cell: no triangle listed there can block a shadow
     # ray leaving it towards the light (every one that may lie nearer is behind its plane)
     cell_clear: wp.array(dtype=wp.uint8)
-    # per light and triangle (light * triangles + face): 1 where every shadow ray leaving the
-    # triangle lands in cells where it is clear, so that it needs no query (pinhole views only)
+    # per light and triangle (light * triangles + face): CLEAR where every shadow ray leaving the
+    # triangle lands in cells where it is clear, INTERIOR_CLEAR + k where every ray leaving its
+    # interior (shrunk by INTERIOR_SHRINKS[k]) meets nothing, so that those need no query
+    # (pinhole views only), else NOT_CLEAR
     triangle_clear: wp.array(dtype=wp.uint8)
     triangles: int
     resolution: int
@@ -348,24 +367,28 @@ def finish_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.
         mark_clear_entries(positions, indices, proj, e, cell_start, cell_faces, cell_near, cell_clear)
 
 
+# what spread_cells found of a triangle's shadow rays in a pinhole view
+RAYS_ELSEWHERE = wp.constant(0)  # they pick another view (a cube face the triangle lies wholly outside of)
+RAYS_IN_CELLS = wp.constant(1)  # they land in the cells of the rectangle returned
+RAYS_UNKNOWN = wp.constant(2)  # they may leave the view or its same cells
+
+
 @wp.func
-def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face: int, p0: wp.vec3, p1: wp.vec3,
-                              p2: wp.vec3) -> bool:
-    """Whether every shadow ray leaving the triangle that picks pinhole view ``view`` lands in cells
-    where it is clear (true for a cube face it lies wholly outside of: its rays pick another). A
-    ray leaves within ORIGIN_DEVIATION of the triangle and runs towards the light, missing it by
-    its direction's rounding: seen from the light it lies within an angle `spread` of the
-    triangle, and the triangle's rectangle grown by spread times the cells per radian must stay
-    in the same cells, inside the view."""
+def spread_cells(buffers: LightBuffers, view: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3):
+    """(RAYS_*, cell rectangle) for the shadow rays leaving the triangle that pick pinhole view
+    ``view``. A ray leaves within ORIGIN_DEVIATION of the triangle and runs towards the light,
+    missing it by its direction's rounding: seen from the light it lies within an angle `spread`
+    of the triangle, and the triangle's rectangle grown by spread times the cells per radian must
+    stay in the same cells, inside the view."""
     proj = buffers.views[view]
     c0 = camera_coordinates(proj, p0)
     c1 = camera_coordinates(proj, p1)
     c2 = camera_coordinates(proj, p2)
     zero = wp.float64(0.0)
     if c0[2] <= zero and c1[2] <= zero and c2[2] <= zero:
-        return cube
+        return RAYS_ELSEWHERE, empty_rect()
     if c0[2] <= zero or c1[2] <= zero or c2[2] <= zero:
-        return False
+        return RAYS_UNKNOWN, empty_rect()
     d0 = to_double(p0)
     d1 = to_double(p1)
     d2 = to_double(p2)
@@ -375,27 +398,35 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
     # origins lie at least this far from the light
     nearest = near - largest * ORIGIN_DEVIATION
     if nearest <= zero:
-        return False
+        return RAYS_UNKNOWN, empty_rect()
     spread = (largest * ORIGIN_DEVIATION + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (near + magnitude)) / nearest
-    spread_x = spread * buffers.view_cells_per_radian[view]
-    spread_y = spread_x
+    grow = spread * buffers.view_cells_per_radian[view]
     b = screen_bounds(proj, c0, c1, c2)
-    x_min = b[0]
-    y_min = b[1]
-    x_max = b[2]
-    y_max = b[3]
-    r = cell_rect(proj, x_min, y_min, x_max, y_max)
-    x_min = x_min - CELL_MARGIN - spread_x
-    y_min = y_min - CELL_MARGIN - spread_y
-    x_max = x_max + CELL_MARGIN + spread_x
-    y_max = y_max + CELL_MARGIN + spread_y
+    r = cell_rect(proj, b[0], b[1], b[2], b[3])
+    x_min = b[0] - CELL_MARGIN - grow
+    y_min = b[1] - CELL_MARGIN - grow
+    x_max = b[2] + CELL_MARGIN + grow
+    y_max = b[3] + CELL_MARGIN + grow
     if x_max < zero or y_max < zero or x_min >= wp.float64(proj.width) or y_min >= wp.float64(proj.height):
-        return cube
+        return RAYS_ELSEWHERE, empty_rect()
     # else the spread rectangle lies inside the view, in the same cells
     if x_min < zero or y_min < zero or x_max >= wp.float64(proj.width) or y_max >= wp.float64(proj.height):
-        return False
+        return RAYS_UNKNOWN, empty_rect()
     if (int(wp.floor(x_min)) != r[0] or int(wp.floor(y_min)) != r[1] or int(wp.floor(x_max)) != r[2]
             or int(wp.floor(y_max)) != r[3]):
+        return RAYS_UNKNOWN, empty_rect()
+    return RAYS_IN_CELLS, r
+
+
+@wp.func
+def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face: int, p0: wp.vec3, p1: wp.vec3,
+                              p2: wp.vec3) -> bool:
+    """Whether every shadow ray leaving the triangle that picks pinhole view ``view`` lands in cells
+    where it is clear (true for a cube face it lies wholly outside of: its rays pick another)."""
+    where, r = spread_cells(buffers, view, p0, p1, p2)
+    if where == RAYS_ELSEWHERE:
+        return cube
+    if where == RAYS_UNKNOWN:
         return False
     for y in range(r[1], r[3] + 1):
         for x in range(r[0], r[2] + 1):
@@ -410,32 +441,207 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
     return True
 
 
+@wp.struct
+class Pyramid:
+    """The segments from a triangle (the base, corners s0 s1 s2) to a point (the apex), by the
+    outward unit normals of its faces: the base's and the side through each base edge."""
+    apex: wp.vec3d
+    s0: wp.vec3d
+    s1: wp.vec3d
+    s2: wp.vec3d
+    base: wp.vec3d
+    side01: wp.vec3d
+    side12: wp.vec3d
+    side20: wp.vec3d
+
+
+@wp.func
+def outward_unit(n: wp.vec3d, point: wp.vec3d, inside: wp.vec3d) -> wp.vec3d:
+    """n normalized and turned away from ``inside`` (a point of the solid off the plane through
+    ``point``), or zero where n is degenerate (such a face separates nothing)."""
+    length = wp.length(n)
+    if not length > wp.float64(0.0):
+        return wp.vec3d(wp.float64(0.0))
+    if wp.dot(n, inside - point) > wp.float64(0.0):
+        return -n / length
+    return n / length
+
+
+@wp.func
+def pyramid(apex: wp.vec3d, s0: wp.vec3d, s1: wp.vec3d, s2: wp.vec3d) -> Pyramid:
+    out = Pyramid()
+    out.apex = apex
+    out.s0 = s0
+    out.s1 = s1
+    out.s2 = s2
+    out.base = outward_unit(wp.cross(s1 - s0, s2 - s0), s0, apex)
+    out.side01 = outward_unit(wp.cross(s1 - s0, apex - s0), s0, s2)
+    out.side12 = outward_unit(wp.cross(s2 - s1, apex - s1), s1, s0)
+    out.side20 = outward_unit(wp.cross(s0 - s2, apex - s2), s2, s1)
+    return out
+
+
+@wp.func
+def beyond_plane(n: wp.vec3d, point: wp.vec3d, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, margin: wp.float64) -> bool:
+    """Whether triangle q lies farther than ``margin`` beyond the plane through ``point`` with unit
+    normal n (never for n = 0)."""
+    return wp.dot(n, q0 - point) > margin and wp.dot(n, q1 - point) > margin and wp.dot(n, q2 - point) > margin
+
+
+@wp.func
+def pyramid_separated(solid: Pyramid, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, margin: wp.float64) -> bool:
+    """Whether triangle q lies farther than ``margin`` from the pyramid, shown by a separating
+    plane: one of the pyramid's four faces, or q's own. Conservative: False where no such plane
+    shows it."""
+    # first the whole pyramid on one side of q's plane: neighbours across a concave crease, facing
+    # the light too; then the pyramid's own faces
+    n = wp.cross(q1 - q0, q2 - q0)
+    bound_sq = margin * margin * wp.dot(n, n)
+    if bound_sq > wp.float64(0.0):
+        h0 = wp.dot(n, solid.s0 - q0)
+        h1 = wp.dot(n, solid.s1 - q0)
+        h2 = wp.dot(n, solid.s2 - q0)
+        h3 = wp.dot(n, solid.apex - q0)
+        low = wp.min(wp.min(h0, h1), wp.min(h2, h3))
+        high = wp.max(wp.max(h0, h1), wp.max(h2, h3))
+        if (low > wp.float64(0.0) and low * low > bound_sq) or (high < wp.float64(0.0) and high * high > bound_sq):
+            return True
+    return (beyond_plane(solid.base, solid.s0, q0, q1, q2, margin)
+            or beyond_plane(solid.side01, solid.s0, q0, q1, q2, margin)
+            or beyond_plane(solid.side12, solid.s1, q0, q1, q2, margin)
+            or beyond_plane(solid.side20, solid.s2, q0, q1, q2, margin))
+
+
+@wp.func
+def shrunk_pyramid(apex: wp.vec3d, d0: wp.vec3d, d1: wp.vec3d, d2: wp.vec3d, level: int) -> Pyramid:
+    """The pyramid from the triangle shrunk by INTERIOR_SHRINKS[level] about its centroid to ``apex``."""
+    centroid = (d0 + d1 + d2) / wp.float64(3.0)
+    keep = wp.float64(1.0) - wp.float64(INTERIOR_SHRINKS[level])
+    return pyramid(apex, centroid + (d0 - centroid) * keep, centroid + (d1 - centroid) * keep,
+                   centroid + (d2 - centroid) * keep)
+
+
+@wp.func
+def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int,
+                         positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), p0: wp.vec3,
+                         p1: wp.vec3, p2: wp.vec3, level: int) -> int:
+    """The first of INTERIOR_SHRINKS from ``level`` on (INTERIOR_LEVELS for none) such that no
+    shadow ray leaving the triangle shrunk by it about its centroid and picking pinhole view ``view``
+    can meet a triangle (``level`` itself for a cube face the triangle lies wholly outside of).
+
+    Such a ray starts within `deviation` (ORIGIN_DEVIATION) of the shrunk triangle and runs
+    towards the light, straying from the exact segment to it by at most `stray`: it lies within
+    `margin` of the pyramid between the shrunk triangle and the light. It can meet only triangles
+    its cells list nearer to the light than the triangle's farness, and none of those comes within
+    `margin`, twice over, of that pyramid (the second `deviation` covers the ray-triangle test's
+    own rounding, about a float32 ulp of the coordinates). Unlike the triangle's own plane, in
+    front of which its neighbours across a concave crease rise, the pyramid leaves them out where
+    they face the light too or lean away from it. A smaller shrink's pyramid holds a larger one's,
+    so a triangle clear of it is clear of every later one."""
+    if level >= INTERIOR_LEVELS:
+        return INTERIOR_LEVELS
+    where, r = spread_cells(buffers, view, p0, p1, p2)
+    if where == RAYS_ELSEWHERE:
+        return wp.where(cube, level, INTERIOR_LEVELS)
+    if where == RAYS_UNKNOWN:
+        return INTERIOR_LEVELS
+    proj = buffers.views[view]
+    d0 = to_double(p0)
+    d1 = to_double(p1)
+    d2 = to_double(p2)
+    largest = wp.max(largest_coordinate(d0), wp.max(largest_coordinate(d1), largest_coordinate(d2)))
+    magnitude = wp.max(largest, largest_coordinate(proj.eye))
+    far = farness(proj, d0, d1, d2)
+    deviation = largest * ORIGIN_DEVIATION
+    stray = wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (wp.float64(far) + magnitude)
+    margin = wp.float64(2.0) * (deviation + stray) + magnitude * ORIGIN_DEVIATION
+    solid = shrunk_pyramid(proj.eye, d0, d1, d2, level)
+    smallest = shrunk_pyramid(proj.eye, d0, d1, d2, INTERIOR_LEVELS - 1)
+    checked = int(0)
+    for y in range(r[1], r[3] + 1):
+        for x in range(r[0], r[2] + 1):
+            e = view * buffers.resolution * buffers.resolution + y * buffers.resolution + x
+            for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
+                if buffers.cell_near[k] >= far:
+                    break
+                other = buffers.cell_faces[k]
+                if other != face:
+                    checked += 1
+                    if checked > MAX_INTERIOR_CHECKS:
+                        return INTERIOR_LEVELS
+                    c = triangle_corners(indices, other)
+                    q0 = to_double(positions[c[0]])
+                    q1 = to_double(positions[c[1]])
+                    q2 = to_double(positions[c[2]])
+                    if not pyramid_separated(solid, q0, q1, q2, margin):
+                        # a later shrink's smaller pyramid, if the smallest one is clear of q
+                        if not pyramid_separated(smallest, q0, q1, q2, margin):
+                            return INTERIOR_LEVELS
+                        level += 1
+                        solid = shrunk_pyramid(proj.eye, d0, d1, d2, level)
+                        while not pyramid_separated(solid, q0, q1, q2, margin):
+                            level += 1
+                            solid = shrunk_pyramid(proj.eye, d0, d1, d2, level)
+    return level
+
+
 @wp.kernel
 def mark_clear_triangles(buffers: LightBuffers, light: int, positions: wp.array(dtype=wp.vec3),
                          indices: wp.array(dtype=wp.int32), first: int, end: int):
-    """Per triangle of [first, end), whether every shadow ray leaving it towards ``light`` (pinhole
-    views) is lit without a query: it is clear wherever its rays may land, in every view
-    (buffers.triangle_clear)."""
+    """Per triangle of [first, end), which of its shadow rays towards ``light`` (pinhole views)
+    are lit without a query (buffers.triangle_clear): all of them where it is clear wherever its
+    rays may land, in every view; else those leaving its interior shrunk by the first of
+    INTERIOR_SHRINKS that no triangle can block in any view; else none."""
     start = first + wp.tid() * ITEMS_PER_THREAD
     span = buffers.light_views[light]
+    cube = span[1] == CUBE_FACES
     for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
         c = triangle_corners(indices, face)
-        clear = bool(True)
+        p0 = positions[c[0]]
+        p1 = positions[c[1]]
+        p2 = positions[c[2]]
+        mark = CLEAR
         for v in range(span[0], span[0] + span[1]):
-            if clear:
-                clear = pinhole_triangle_is_clear(buffers, v, span[1] == CUBE_FACES, face, positions[c[0]],
-                                                  positions[c[1]], positions[c[2]])
-        buffers.triangle_clear[light * buffers.triangles + face] = wp.where(clear, wp.uint8(1), wp.uint8(0))
+            if mark == CLEAR:
+                if not pinhole_triangle_is_clear(buffers, v, cube, face, p0, p1, p2):
+                    mark = NOT_CLEAR
+        if mark == NOT_CLEAR:
+            level = int(0)
+            for v in range(span[0], span[0] + span[1]):
+                level = interior_clear_level(buffers, v, cube, face, positions, indices, p0, p1, p2, level)
+            if level < INTERIOR_LEVELS:
+                mark = INTERIOR_CLEAR + wp.uint8(level)
+        buffers.triangle_clear[light * buffers.triangles + face] = mark
+
+
+@wp.func
+def clear_mark(buffers: LightBuffers, light: int, face: int) -> wp.uint8:
+    """buffers.triangle_clear's code for triangle ``face`` and ``light`` (NOT_CLEAR past the arrays)."""
+    i = light * buffers.triangles + face
+    if light >= buffers.light_views.shape[0] or i >= buffers.triangle_clear.shape[0]:
+        return NOT_CLEAR
+    return buffers.triangle_clear[i]
 
 
 @wp.func
 def triangle_is_clear(buffers: LightBuffers, light: int, face: int) -> bool:
     """Whether a shadow ray leaving triangle ``face`` towards ``light`` meets nothing, known
     without a query (mark_clear_triangles)."""
-    i = light * buffers.triangles + face
-    if light >= buffers.light_views.shape[0] or i >= buffers.triangle_clear.shape[0]:
+    return clear_mark(buffers, light, face) == CLEAR
+
+
+@wp.func
+def ray_leaves_clear(buffers: LightBuffers, light: int, face: int, b0: float, b1: float, b2: float) -> bool:
+    """Whether the shadow ray towards ``light`` from the point of triangle ``face`` with
+    barycentric coordinates (b0, b1, b2) meets nothing, known without a query: the whole triangle
+    is clear, or its interior (mark_clear_triangles) holds the point."""
+    mark = clear_mark(buffers, light, face)
+    if mark == CLEAR:
+        return True
+    if mark < INTERIOR_CLEAR:
         return False
-    return buffers.triangle_clear[i] != wp.uint8(0)
+    least = INTERIOR_SHRINKS[int(mark - INTERIOR_CLEAR)] / 3.0
+    return b0 >= least and b1 >= least and b2 >= least
 
 
 @wp.kernel

@@ -12,7 +12,7 @@ from .brdf import brdf_for
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
 from .light_buffer import (LightBuffers, UNDECIDED, OCCLUDED, SHADOW_CACHE_LIGHTS, ShadowCache, light_buffer_occlusion,
-                           segment_meets_triangle, triangle_is_clear)
+                           ray_leaves_clear, segment_meets_triangle)
 from .lights import LightSample, light_sampler
 from .normal_mapping import perturb_normal
 from .raster import ray_triangle_intersection, triangle_corners, visible_triangle
@@ -120,7 +120,7 @@ def render_kernel(features):
         the light buffer's cell holds it, or along a directional light. The ``cached`` blocker (of
         the shadow cache) is tested first, then the light buffer; the BVH answers where the light
         buffer cannot."""
-        if triangle_is_clear(buffers, light, h.face):
+        if ray_leaves_clear(buffers, light, h.face, h.b0, h.b1, h.b2):
             return False, -1
         origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
         direction = ls.to_light

@@ -13,7 +13,8 @@ import warp as wp
 import pbrwarp as pw
 from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.lights import light_sampler
-from pbrwarp.kernels.light_buffer import UNDECIDED, LightBuffers, light_buffer_occlusion
+from pbrwarp.kernels.light_buffer import (CLEAR, INTERIOR_CLEAR, INTERIOR_SHRINKS, UNDECIDED, LightBuffers,
+                                          light_buffer_occlusion, pyramid, pyramid_separated, ray_leaves_clear)
 from pbrwarp.kernels.robust import RAY_FAR, SHADOW_RAY_SHORTENING, offset_ray_origin, triangle_hit_error
 from pbrwarp.kernels.scene_data import SceneData
 from pbrwarp.light_buffers import build, no_light_buffers
@@ -54,6 +55,31 @@ def verdicts(scene: SceneData, buffers: LightBuffers, light: int, faces: wp.arra
                                               direction, max_t, f)
     reached = wp.where(sample_light(data, p).irradiance == wp.vec3(0.0), 0, 1)
     out[i] = wp.vec3i(verdict, wp.where(wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t), 1, 0), reached)
+
+
+@wp.kernel
+def interior_rays(scene: SceneData, buffers: LightBuffers, light: int, faces: wp.array(dtype=int),
+                  barycentrics: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3i)):
+    """(whether the render kernel takes the shadow ray from a point of each given triangle (the
+    given barycentrics of its corners) as lit without a query, BVH any-hit, lit by the light)."""
+    i = wp.tid()
+    f = faces[i]
+    p0 = scene.positions[scene.indices[3 * f]]
+    p1 = scene.positions[scene.indices[3 * f + 1]]
+    p2 = scene.positions[scene.indices[3 * f + 2]]
+    b = barycentrics[i]
+    p = p0 * b[0] + p1 * b[1] + p2 * b[2]
+    data = scene.lights[light]
+    to_light = wp.normalize(data.position - p)
+    ng = wp.normalize(wp.cross(p1 - p0, p2 - p0))
+    if wp.dot(ng, to_light) < 0.0:
+        ng = -ng
+    origin = offset_ray_origin(p, triangle_hit_error(p0, p1, p2), ng, to_light)
+    direction = wp.normalize(data.position - origin)
+    max_t = wp.length(data.position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
+    skipped = wp.where(ray_leaves_clear(buffers, light, f, b[0], b[1], b[2]), 1, 0)
+    reached = wp.where(sample_light(data, p).irradiance == wp.vec3(0.0), 0, 1)
+    out[i] = wp.vec3i(skipped, wp.where(wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t), 1, 0), reached)
 
 
 def scene_with_floor(mesh, light, shift=0.0):
@@ -127,17 +153,23 @@ def test_light_buffer_verdicts_are_the_bvhs(light, mesh, offset):
     assert (verdict[decided] != bvh[decided]).sum() <= 1e-4 * len(verdict)
 
 
-@pytest.mark.parametrize("light", ["point", "point inside the cube of the mesh", "narrow spot", "wide spot"])
-@pytest.mark.parametrize("mesh", ["icosphere", "bunny"])
-def test_triangles_marked_clear_are_never_shadowed(light, mesh):
-    """A triangle marked clear of a light skips its shadow rays' queries: the BVH finds no occluder
-    for rays from anywhere on it, and a convex sphere's lit side is mostly marked."""
+def clear_marks(mesh, light):
+    """(uploaded scene, light buffers, per triangle its mark for the light) of ``mesh`` on the floor."""
     if mesh == "bunny" and not ASSETS.exists():
         pytest.skip("shared/assets is not beside the repository")
     scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), LIGHTS[light])
     gpu = upload(scene)
     buffers = build(scene, gpu)
-    clear = np.flatnonzero(buffers.triangle_clear.numpy()[: buffers.triangles])
+    return gpu, buffers, buffers.triangle_clear.numpy()[: buffers.triangles].astype(int)
+
+
+@pytest.mark.parametrize("light", ["point", "point inside the cube of the mesh", "narrow spot", "wide spot"])
+@pytest.mark.parametrize("mesh", ["icosphere", "bunny"])
+def test_triangles_marked_clear_are_never_shadowed(light, mesh):
+    """A triangle marked clear of a light skips its shadow rays' queries: the BVH finds no occluder
+    for rays from anywhere on it, and a convex sphere's lit side is mostly marked."""
+    gpu, buffers, marks = clear_marks(mesh, light)
+    clear = np.flatnonzero(marks == int(CLEAR))
     if mesh == "icosphere" and light == "point":
         assert len(clear) >= 0.25 * buffers.triangles
     if len(clear) == 0:
@@ -154,6 +186,98 @@ def test_triangles_marked_clear_are_never_shadowed(light, mesh):
     verdict, bvh, reached = out.numpy().T
     assert np.all(verdict[reached == 1] == 0)
     assert np.all(bvh[reached == 1] == 0)
+
+
+@pytest.mark.parametrize("light", ["point", "point inside the cube of the mesh", "narrow spot", "wide spot"])
+@pytest.mark.parametrize("mesh", ["icosphere", "bunny"])
+def test_rays_from_a_clear_interior_are_never_shadowed(light, mesh):
+    """A triangle whose interior (shrunk by INTERIOR_SHRINKS[k] about its centroid) is marked clear
+    skips the queries of the rays leaving it there: the BVH finds no occluder for rays from
+    anywhere in it, its corners and edges included; rays from outside it are queried. The noisy
+    bunny's lit side, whose neighbours rise in front of each other's planes, is mostly marked so."""
+    gpu, buffers, marks = clear_marks(mesh, light)
+    interior = np.flatnonzero(marks >= int(INTERIOR_CLEAR))
+    if mesh == "bunny" and light == "point":
+        assert len(interior) >= 0.2 * buffers.triangles
+    if len(interior) == 0:
+        return
+    rng = np.random.default_rng(3)
+    n = 100_000
+    faces = rng.choice(interior, n)
+    least = np.array([float(x) for x in INTERIOR_SHRINKS])[marks[faces] - int(INTERIOR_CLEAR)] / 3.0
+    # points of the shrunk triangle: least + (1 - 3 least) times barycentrics of the whole one
+    b = rng.dirichlet(np.ones(3), n)
+    # its corners and edges too
+    b[: n // 10] = rng.choice([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.5, 0.5, 0.0], [0.0, 0.5, 0.5]],
+                              n // 10)
+    inside = least[:, None] + (1.0 - 3.0 * least[:, None]) * b
+    out = wp.empty(n, dtype=wp.vec3i)
+    wp.launch(interior_rays, dim=n, inputs=[gpu.data, buffers, 0, wp.array(faces, dtype=int),
+                                            wp.array(inside.astype(np.float32), dtype=wp.vec3), out])
+    skipped, bvh, reached = out.numpy().T
+    # float32 barycentrics of the shrunk triangle's boundary may round just below the threshold
+    assert skipped[reached == 1].mean() >= 0.9
+    assert np.all(bvh[(reached == 1) & (skipped == 1)] == 0)
+    # just outside it: queried
+    outside = inside.copy()
+    outside[:, 0] = 0.5 * least
+    outside[:, 1:] *= ((1.0 - outside[:, 0]) / outside[:, 1:].sum(axis=1))[:, None]
+    wp.launch(interior_rays, dim=n, inputs=[gpu.data, buffers, 0, wp.array(faces, dtype=int),
+                                            wp.array(outside.astype(np.float32), dtype=wp.vec3), out])
+    assert not np.any(out.numpy()[:, 0])
+
+
+@wp.kernel
+def separations(solids: wp.array(dtype=wp.vec3d, ndim=2), triangles: wp.array(dtype=wp.vec3d, ndim=2),
+                margin: wp.float64, out: wp.array(dtype=int)):
+    i = wp.tid()
+    solid = pyramid(solids[i, 0], solids[i, 1], solids[i, 2], solids[i, 3])
+    out[i] = wp.where(pyramid_separated(solid, triangles[i, 0], triangles[i, 1], triangles[i, 2], margin), 1, 0)
+
+
+def convex_samples(corners, count, rng):
+    """Random points of the convex hull of ``corners`` (k, 3), with the corners and edge points."""
+    weights = rng.dirichlet(np.ones(len(corners)) * 0.3, count)
+    return np.vstack([weights @ corners, corners])
+
+
+def test_pyramid_separation_is_never_claimed_within_the_margin():
+    """pyramid_separated(apex, base, q) claims a separating plane: wherever it does, no point of
+    the pyramid (the segments from its base to its apex) lies within the margin of a point of q
+    (dense samples of both, float64); it finds one for a neighbour that faces the light across a
+    concave crease (which the base triangle's own plane does not exclude) and for one bent away
+    from it, and none for triangles that reach into the pyramid."""
+    rng = np.random.default_rng(4)
+    n = 400
+    apex = np.array([0.0, 0.0, 5.0])
+    base = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    solids = np.repeat(np.vstack([apex, base])[None], n, axis=0) + rng.normal(0.0, 0.2, (n, 4, 3))
+    triangles = rng.normal(0.0, 1.0, (n, 3, 3)) * 0.6 + [0.4, 0.4, 0.4]
+    margin = 0.05
+    out = wp.empty(n, dtype=int)
+    wp.launch(separations, dim=n, inputs=[wp.array(solids, dtype=wp.vec3d), wp.array(triangles, dtype=wp.vec3d),
+                                          margin, out])
+    separated = out.numpy().astype(bool)
+    assert 0.1 < separated.mean() < 0.9
+    for i in np.flatnonzero(separated):
+        a = convex_samples(solids[i], 3000, rng)
+        b = convex_samples(triangles[i], 1000, rng)
+        nearest = np.min(np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2))
+        assert nearest > margin, i
+
+    # across the base's edge from (1, 0, 0) to (0, 1, 0): a neighbour rising in front of the base's
+    # plane (concave), facing the apex too; one bent below it (convex); one leaning over the base
+    edge = base[1:]
+    cases = {"concave, facing the light": ([1.0, 1.0, 0.3], True), "convex": ([1.0, 1.0, -0.3], True),
+             "leaning over the base": ([0.2, 0.2, 0.3], False), "crossing the pyramid": ([0.1, 0.1, 2.0], False)}
+    keep = 0.9
+    centroid = base.mean(axis=0)
+    shrunk = centroid + (base - centroid) * keep
+    solids = np.array([np.vstack([apex, shrunk])] * len(cases))
+    triangles = np.array([np.vstack([edge, tip]) for tip, _ in cases.values()])
+    wp.launch(separations, dim=len(cases), inputs=[wp.array(solids, dtype=wp.vec3d),
+                                                   wp.array(triangles, dtype=wp.vec3d), 1e-4, out])
+    assert dict(zip(cases, out.numpy()[: len(cases)].astype(bool))) == {name: want for name, (_, want) in cases.items()}
 
 
 def test_no_light_buffer_for_a_light_on_a_surface():
