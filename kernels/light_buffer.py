@@ -90,6 +90,9 @@ INTERIOR_CLEAR = wp.constant(wp.uint8(2))
 INTERIOR_LEVELS = 6
 InteriorShrinks = wp.types.vector(length=INTERIOR_LEVELS, dtype=wp.float32)
 INTERIOR_SHRINKS = wp.constant(InteriorShrinks(0.02, 0.05, 0.1, 0.2, 0.35, 0.6))
+# Triangles last tested for a triangle's interior, skipped when its other cells list them again.
+RECENT_CHECKS = 16
+RecentChecks = wp.types.vector(length=RECENT_CHECKS, dtype=wp.int32)
 # Most triangles a cell may list nearer to the light than a triangle before its interior is not
 # tried (bounds the build's work on degenerate scenes).
 MAX_INTERIOR_CHECKS = wp.constant(256)
@@ -493,8 +496,13 @@ def pyramid_separated(solid: Pyramid, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, 
     """Whether triangle q lies farther than ``margin`` from the pyramid, shown by a separating
     plane: one of the pyramid's four faces, or q's own. Conservative: False where no such plane
     shows it."""
-    # first the whole pyramid on one side of q's plane: neighbours across a concave crease, facing
-    # the light too; then the pyramid's own faces
+    # first the faces through the apex, beside which lie most triangles the pyramid's cells list;
+    # then the whole pyramid on one side of q's plane (neighbours across a concave crease, facing
+    # the light too); then the base
+    if (beyond_plane(solid.side01, solid.s0, q0, q1, q2, margin)
+            or beyond_plane(solid.side12, solid.s1, q0, q1, q2, margin)
+            or beyond_plane(solid.side20, solid.s2, q0, q1, q2, margin)):
+        return True
     n = wp.cross(q1 - q0, q2 - q0)
     bound_sq = margin * margin * wp.dot(n, n)
     if bound_sq > wp.float64(0.0):
@@ -506,10 +514,7 @@ def pyramid_separated(solid: Pyramid, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, 
         high = wp.max(wp.max(h0, h1), wp.max(h2, h3))
         if (low > wp.float64(0.0) and low * low > bound_sq) or (high < wp.float64(0.0) and high * high > bound_sq):
             return True
-    return (beyond_plane(solid.base, solid.s0, q0, q1, q2, margin)
-            or beyond_plane(solid.side01, solid.s0, q0, q1, q2, margin)
-            or beyond_plane(solid.side12, solid.s1, q0, q1, q2, margin)
-            or beyond_plane(solid.side20, solid.s2, q0, q1, q2, margin))
+    return beyond_plane(solid.base, solid.s0, q0, q1, q2, margin)
 
 
 @wp.func
@@ -558,6 +563,7 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
     solid = shrunk_pyramid(proj.eye, d0, d1, d2, level)
     smallest = shrunk_pyramid(proj.eye, d0, d1, d2, INTERIOR_LEVELS - 1)
     checked = int(0)
+    recent = RecentChecks(-1)
     for y in range(r[1], r[3] + 1):
         for x in range(r[0], r[2] + 1):
             e = view * buffers.resolution * buffers.resolution + y * buffers.resolution + x
@@ -565,7 +571,11 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
                 if buffers.cell_near[k] >= far:
                     break
                 other = buffers.cell_faces[k]
-                if other != face:
+                seen = other == face
+                for j in range(RECENT_CHECKS):
+                    seen = seen or recent[j] == other
+                if not seen:
+                    recent[checked % RECENT_CHECKS] = other
                     checked += 1
                     if checked > MAX_INTERIOR_CHECKS:
                         return INTERIOR_LEVELS
