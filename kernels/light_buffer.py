@@ -598,30 +598,38 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
 @wp.kernel
 def mark_clear_triangles(buffers: LightBuffers, light: int, positions: wp.array(dtype=wp.vec3),
                          indices: wp.array(dtype=wp.int32), first: int, end: int):
-    """Per triangle of [first, end), which of its shadow rays towards ``light`` (pinhole views)
-    are lit without a query (buffers.triangle_clear): all of them where it is clear wherever its
-    rays may land, in every view; else those leaving its interior shrunk by the first of
-    INTERIOR_SHRINKS that no triangle can block in any view; else none."""
+    """Per triangle of [first, end), whether every shadow ray leaving it towards ``light`` (pinhole
+    views) is lit without a query: it is clear wherever its rays may land, in every view
+    (buffers.triangle_clear: CLEAR, else NOT_CLEAR)."""
     start = first + wp.tid() * ITEMS_PER_THREAD
     span = buffers.light_views[light]
-    cube = span[1] == CUBE_FACES
     for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
         c = triangle_corners(indices, face)
-        p0 = positions[c[0]]
-        p1 = positions[c[1]]
-        p2 = positions[c[2]]
-        mark = CLEAR
+        clear = bool(True)
         for v in range(span[0], span[0] + span[1]):
-            if mark == CLEAR:
-                if not pinhole_triangle_is_clear(buffers, v, cube, face, p0, p1, p2):
-                    mark = NOT_CLEAR
-        if mark == NOT_CLEAR:
+            if clear:
+                clear = pinhole_triangle_is_clear(buffers, v, span[1] == CUBE_FACES, face, positions[c[0]],
+                                                  positions[c[1]], positions[c[2]])
+        buffers.triangle_clear[light * buffers.triangles + face] = wp.where(clear, CLEAR, NOT_CLEAR)
+
+
+@wp.kernel
+def mark_clear_interiors(buffers: LightBuffers, light: int, positions: wp.array(dtype=wp.vec3),
+                         indices: wp.array(dtype=wp.int32), first: int, end: int):
+    """Per triangle of [first, end) not clear of ``light`` (pinhole views): INTERIOR_CLEAR + k where
+    no triangle can block a shadow ray leaving its interior shrunk by INTERIOR_SHRINKS[k], the
+    first that works, in any view (buffers.triangle_clear)."""
+    start = first + wp.tid() * ITEMS_PER_THREAD
+    span = buffers.light_views[light]
+    for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
+        if buffers.triangle_clear[light * buffers.triangles + face] == NOT_CLEAR:
+            c = triangle_corners(indices, face)
             level = int(0)
             for v in range(span[0], span[0] + span[1]):
-                level = interior_clear_level(buffers, v, cube, face, positions, indices, p0, p1, p2, level)
+                level = interior_clear_level(buffers, v, span[1] == CUBE_FACES, face, positions, indices,
+                                             positions[c[0]], positions[c[1]], positions[c[2]], level)
             if level < INTERIOR_LEVELS:
-                mark = INTERIOR_CLEAR + wp.uint8(level)
-        buffers.triangle_clear[light * buffers.triangles + face] = mark
+                buffers.triangle_clear[light * buffers.triangles + face] = INTERIOR_CLEAR + wp.uint8(level)
 
 
 @wp.func

@@ -36,14 +36,23 @@ CLEARANCE_MARGIN = 1.0e-3
 
 
 def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
-    """The light buffers of every light of ``scene`` (uploaded as ``gpu``), cached on the scene."""
+    """The light buffers of every light of ``scene`` (uploaded as ``gpu``), cached on the scene.
+
+    Triangle interiors are marked clear (kernels/light_buffer.mark_clear_interiors) when the
+    buffers are first reused, for a second frame: the marks cost about as much as the rest of the
+    build and pay off only over frames whose lights and geometry stay put, so a light moving every
+    frame never pays for them."""
     key = tuple(light_geometry(light) for light in scene.lights)
     cached = scene.__dict__.get("_light_buffers")
     if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
-        return cached[2]
+        positions, key, buffers, interiors_marked = cached
+        if not interiors_marked:
+            _mark_triangles(lb.mark_clear_interiors, buffers, gpu, thread_count(threads))
+            scene.__dict__["_light_buffers"] = (positions, key, buffers, True)
+        return buffers
     threads = thread_count(threads)
     for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.finish_cells,
-                   lb.mark_clear_triangles):
+                   lb.mark_clear_triangles, lb.mark_clear_interiors):
         load_for_cpu(kernel)
     positions, indices = gpu.data.positions, gpu.data.indices
     triangles = len(indices) // 3
@@ -122,18 +131,27 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     buffers.triangle_clear = wp.zeros(max(len(scene.lights) * triangles, 1), dtype=wp.uint8, device="cpu")
     buffers.triangles = triangles
     buffers.resolution = RESOLUTION
-    pinhole_lights = [k for k, (first, n) in enumerate(spans) if n and not views[first].orthographic]
-    per_block = -(-triangles // blocks)
+    _mark_triangles(lb.mark_clear_triangles, buffers, gpu, threads)
+    scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers, False)
+    return buffers
+
+
+def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int):
+    """``kernel`` (mark_clear_triangles or mark_clear_interiors) over every triangle and pinhole
+    light, in blocks spread over the threads."""
+    views = buffers.views.numpy()
+    spans = buffers.light_views.numpy()
+    pinhole_lights = [k for k, (first, n) in enumerate(spans) if n and not views[first]["orthographic"]]
+    triangles = buffers.triangles
+    per_block = -(-triangles // (WORK_BLOCKS_PER_THREAD * threads))
 
     def mark(job):
         light, first = job
         count = min(per_block, triangles - first)
-        wp.launch(lb.mark_clear_triangles, dim=launch_threads(count), device="cpu",
-                  inputs=[buffers, light, positions, indices, first, first + count])
+        wp.launch(kernel, dim=launch_threads(count), device="cpu",
+                  inputs=[buffers, light, gpu.data.positions, gpu.data.indices, first, first + count])
 
     run_all(mark, [(light, first) for light in pinhole_lights for first in range(0, triangles, per_block)], threads)
-    scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers)
-    return buffers
 
 
 def cells_per_radian(view: lb.Projection) -> float:

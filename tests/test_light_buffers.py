@@ -154,12 +154,14 @@ def test_light_buffer_verdicts_are_the_bvhs(light, mesh, offset):
 
 
 def clear_marks(mesh, light):
-    """(uploaded scene, light buffers, per triangle its mark for the light) of ``mesh`` on the floor."""
+    """(uploaded scene, light buffers, per triangle its mark for the light) of ``mesh`` on the floor,
+    once the buffers were reused (which marks interiors)."""
     if mesh == "bunny" and not ASSETS.exists():
         pytest.skip("shared/assets is not beside the repository")
     scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), LIGHTS[light])
     gpu = upload(scene)
     buffers = build(scene, gpu)
+    assert build(scene, gpu) is buffers
     return gpu, buffers, buffers.triangle_clear.numpy()[: buffers.triangles].astype(int)
 
 
@@ -284,6 +286,22 @@ def test_no_light_buffer_for_a_light_on_a_surface():
     scene = scene_with_floor(icosphere(3), pw.PointLight(position=(0.0, 1.0, 0.0), intensity=5.0))
     buffers = build(scene, upload(scene))
     assert tuple(buffers.light_views.numpy()[0]) == (0, 0)
+
+
+def test_interiors_are_marked_when_the_buffers_are_first_reused():
+    """A light moving every frame rebuilds its buffers every frame: the interiors' marks, which
+    pay off only over several frames, wait for the first reuse."""
+    if not ASSETS.exists():
+        pytest.skip("shared/assets is not beside the repository")
+    scene = scene_with_floor(bunny(), LIGHTS["point"])
+    gpu = upload(scene)
+    buffers = build(scene, gpu)
+    first = buffers.triangle_clear.numpy().copy()
+    assert first.max() == int(CLEAR)
+    build(scene, gpu)
+    reused = buffers.triangle_clear.numpy()
+    assert np.array_equal(reused[reused < int(INTERIOR_CLEAR)], first[reused < int(INTERIOR_CLEAR)])
+    assert (reused >= int(INTERIOR_CLEAR)).mean() >= 0.2
 
 
 def test_buffers_are_reused_until_lights_or_geometry_move():
