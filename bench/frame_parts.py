@@ -19,7 +19,7 @@ import sys
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import command_line, interleaved_medians, write_results  # noqa: E402
+from common import command_line, interleaved_medians, rebuilt, write_results  # noqa: E402
 from frames import meshes, scene_on_floor  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
@@ -43,8 +43,7 @@ def variants(scene, camera, size, threads):
                                  progress=False, **options)
 
     def build():
-        scene.__dict__.pop("_light_buffers", None)
-        light_buffers.build(scene, gpu, threads)
+        rebuilt(scene, "_light_buffers", lambda: light_buffers.build(scene, gpu, threads))
 
     return dict(zip(PARTS, (
         lambda: visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads, out=out,

@@ -24,7 +24,7 @@ import trimesh
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import command_line, interleaved_medians, write_results  # noqa: E402
+from common import command_line, interleaved_medians, rebuilt, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp.kernels import stages  # noqa: E402
@@ -79,12 +79,12 @@ def frame(scene, camera, size, visibility, shadows):
     mode = shadows.split()[0] if shadows else shadows
 
     def render_one():
-        if shadows == "map rebuilt":
-            scene.__dict__.pop("_shadow_maps", None)
-        if shadows == "rays rebuilt":
-            scene.__dict__.pop("_light_buffers", None)
         pw.render(scene, camera, width=size, height=size, visibility=visibility, shadows=mode, progress=False)
 
+    if shadows == "map rebuilt":
+        return lambda: rebuilt(scene, "_shadow_maps", render_one)
+    if shadows == "rays rebuilt":
+        return lambda: rebuilt(scene, "_light_buffers", render_one)
     return render_one
 
 
@@ -116,8 +116,9 @@ def main(argv=None):
         lines.append(f"| {r['scene']} | " + " | ".join(f"{r[k]:.1f}" for k in keys) + f" | {embree} |")
     lines += ["", "Whole frames (spp 1, every core, medians; every variant and the Embree pass timed in turn, "
               "round after round). \"rays\": shadow rays through the light buffers "
-              "built for an earlier frame (same lights and geometry), \"rays rebuilt\": built for this frame "
-              "(six 512² cube faces of triangle lists for the point light); \"map reused\": the maps rendered "
+              "built for an earlier frame (same lights and geometry; their triangle interiors were marked when "
+              "they were first reused), \"rays rebuilt\": built for this frame (six 512² cube faces of "
+              "triangle lists for the point light, no interior marks); \"map reused\": the maps rendered "
               "for an earlier frame serve this one; \"map rebuilt\": rendered for this frame, six 1024² cube "
               "faces for the point light."]
     command = command_line(ap, args)
