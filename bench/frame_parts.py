@@ -6,8 +6,9 @@ Per scene and thread count (1 and every core), medians of interleaved rounds aft
 the rasterized visibility buffer alone; whole frames (visibility "raster") without shadows, then
 without the depth and normal outputs, then with the diffuse lobe's albedo coupling replaced by the
 cheapest coupling ("none", no table lookups), then with shadow rays through the light buffers
-kept from an earlier frame; and building the light buffers. Differences between these are the
-parts' costs. Writes bench/results/frame_parts.{md,json}.
+kept from an earlier frame, and the same with their triangle interiors' clear marks dropped for
+the frame; and building the light buffers. Differences between these are the parts' costs.
+Writes bench/results/frame_parts.{md,json}.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import argparse
 import os
 import sys
 
+import numpy as np
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -25,11 +27,12 @@ from frames import meshes, scene_on_floor  # noqa: E402
 import pbrwarp as pw  # noqa: E402
 from pbrwarp import light_buffers  # noqa: E402
 from pbrwarp.gpu_scene import back_face_culling, upload  # noqa: E402
+from pbrwarp.kernels.light_buffer import INTERIOR_CLEAR, NOT_CLEAR  # noqa: E402
 from pbrwarp.raster import reused_buffer, visibility_buffer  # noqa: E402
 from pbrwarp.render import _camera_data  # noqa: E402
 
 PARTS = ("raster only", "no shadows", "no shadows, no AOVs", "no shadows, coupling none", "shadow rays",
-         "light buffers built")
+         "shadow rays, no interior marks", "light buffers built")
 
 
 def variants(scene, camera, size, threads):
@@ -45,6 +48,16 @@ def variants(scene, camera, size, threads):
     def build():
         rebuilt(scene, "_light_buffers", lambda: light_buffers.build(scene, gpu, threads))
 
+    def without_interior_marks():
+        # the kept buffers' marks, less the interiors', for one frame (the same compiled kernel)
+        buffers = light_buffers.build(scene, gpu, threads)
+        marks = buffers.triangle_clear.numpy()
+        buffers.triangle_clear.assign(np.where(marks >= int(INTERIOR_CLEAR), int(NOT_CLEAR), marks).astype(np.uint8))
+        try:
+            frame(shadows="rays")()
+        finally:
+            buffers.triangle_clear.assign(marks)
+
     return dict(zip(PARTS, (
         lambda: visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads, out=out,
                                   cull_back_faces=cull),
@@ -52,6 +65,7 @@ def variants(scene, camera, size, threads):
         frame(shadows=False, aovs=False),
         frame(shadows=False, brdf=pw.BRDF(coupling="none")),
         frame(shadows="rays"),
+        without_interior_marks,
         build,
     )))
 
@@ -68,7 +82,6 @@ def main(argv=None):
         scene, camera = scene_on_floor(mesh)
         for threads in sorted({1, cores}):
             times = interleaved_medians(variants(scene, camera, args.size, threads), args.repeats)
-            # the "shadow rays" frames reuse buffers built by the build part's last run
             row = {"scene": name, "threads": threads, **{part: 1e3 * times[part] for part in PARTS}}
             rows.append(row)
             print(row, file=sys.stderr)
@@ -81,8 +94,9 @@ def main(argv=None):
               "(back faces culled as renders cull them); frames: pw.render with visibility=\"raster\", "
               "spp 1; \"coupling none\": the diffuse lobe's albedo coupling (two table lookups and a mean "
               "per evaluation) replaced by none; \"shadow rays\": through light buffers kept from an "
-              "earlier frame; \"light buffers built\": pbrwarp.light_buffers.build for the scene's one "
-              "point light (six 512² faces)."]
+              "earlier frame (their triangle interiors marked on their first reuse); \"no interior marks\": "
+              "the same with those marks dropped for the frame; \"light buffers built\": "
+              "pbrwarp.light_buffers.build for the scene's one point light (six 512² faces)."]
     command = command_line(ap, args)
     write_results("frame_parts", command, {"rows": rows}, "\n".join(lines) + "\n")
 
