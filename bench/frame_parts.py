@@ -51,7 +51,7 @@ def variants(scene, camera, size, threads):
     def without_interior_marks():
         # the kept buffers' marks, less the interiors', for one frame (the same compiled kernel)
         buffers = light_buffers.build(scene, gpu, threads)
-        marks = buffers.triangle_clear.numpy()
+        marks = buffers.triangle_clear.numpy().copy()
         buffers.triangle_clear.assign(np.where(marks >= int(INTERIOR_CLEAR), int(NOT_CLEAR), marks).astype(np.uint8))
         try:
             frame(shadows="rays")()
