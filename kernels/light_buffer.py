@@ -119,9 +119,9 @@ class LightBuffers:
     # ray leaving it towards the light (every one that may lie nearer is behind its plane)
     cell_clear: wp.array(dtype=wp.uint8)
     # per light and triangle (light * triangles + face): CLEAR where every shadow ray leaving the
-    # triangle lands in cells where it is clear, INTERIOR_CLEAR + k where every ray leaving its
-    # interior (shrunk by INTERIOR_SHRINKS[k]) meets nothing, so that those need no query
-    # (pinhole views only), else NOT_CLEAR
+    # triangle lands in cells where it is clear (pinhole views only), INTERIOR_CLEAR + k where
+    # every ray leaving its interior (shrunk by INTERIOR_SHRINKS[k]) meets nothing, so that those
+    # need no query, else NOT_CLEAR
     triangle_clear: wp.array(dtype=wp.uint8)
     triangles: int
     resolution: int
@@ -378,32 +378,44 @@ RAYS_UNKNOWN = wp.constant(2)  # they may leave the view or its same cells
 
 @wp.func
 def spread_cells(buffers: LightBuffers, view: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3):
-    """(RAYS_*, cell rectangle) for the shadow rays leaving the triangle that pick pinhole view
-    ``view``. A ray leaves within ORIGIN_DEVIATION of the triangle and runs towards the light,
-    missing it by its direction's rounding: seen from the light it lies within an angle `spread`
-    of the triangle, and the triangle's rectangle grown by spread times the cells per radian must
-    stay in the same cells, inside the view."""
+    """(RAYS_*, cell rectangle) for the shadow rays leaving the triangle that pick view ``view``. A
+    ray leaves within ORIGIN_DEVIATION of the triangle and runs towards the light, missing it by
+    its direction's rounding: seen from a point light it lies within an angle `spread` of the
+    triangle, in a parallel view within `stray` (world units) of it, and the triangle's rectangle
+    grown by that many cells must stay in the same cells, inside the view."""
     proj = buffers.views[view]
     c0 = camera_coordinates(proj, p0)
     c1 = camera_coordinates(proj, p1)
     c2 = camera_coordinates(proj, p2)
     zero = wp.float64(0.0)
-    if c0[2] <= zero and c1[2] <= zero and c2[2] <= zero:
-        return RAYS_ELSEWHERE, empty_rect()
-    if c0[2] <= zero or c1[2] <= zero or c2[2] <= zero:
-        return RAYS_UNKNOWN, empty_rect()
     d0 = to_double(p0)
     d1 = to_double(p1)
     d2 = to_double(p2)
-    near = point_triangle_distance(proj.eye, d0, d1, d2)
     largest = wp.max(largest_coordinate(d0), wp.max(largest_coordinate(d1), largest_coordinate(d2)))
     magnitude = wp.max(largest, largest_coordinate(proj.eye))
-    # origins lie at least this far from the light
-    nearest = near - largest * ORIGIN_DEVIATION
-    if nearest <= zero:
-        return RAYS_UNKNOWN, empty_rect()
-    spread = (largest * ORIGIN_DEVIATION + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (near + magnitude)) / nearest
-    grow = spread * buffers.view_cells_per_radian[view]
+    grow = zero
+    if proj.orthographic != 0:
+        if c0[2] <= zero or c1[2] <= zero or c2[2] <= zero:
+            return RAYS_UNKNOWN, empty_rect()
+        depth = wp.max(c0[2], wp.max(c1[2], c2[2]))
+        stray = largest * ORIGIN_DEVIATION + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (depth + magnitude)
+        # cells per world unit: the view's rows scale world units to half-extents
+        row_x = wp.vec3d(proj.to_camera[0, 0], proj.to_camera[0, 1], proj.to_camera[0, 2])
+        row_y = wp.vec3d(proj.to_camera[1, 0], proj.to_camera[1, 1], proj.to_camera[1, 2])
+        grow = stray * wp.max(proj.half_width * wp.length(row_x), proj.half_height * wp.length(row_y))
+    else:
+        if c0[2] <= zero and c1[2] <= zero and c2[2] <= zero:
+            return RAYS_ELSEWHERE, empty_rect()
+        if c0[2] <= zero or c1[2] <= zero or c2[2] <= zero:
+            return RAYS_UNKNOWN, empty_rect()
+        near = point_triangle_distance(proj.eye, d0, d1, d2)
+        # origins lie at least this far from the light
+        nearest = near - largest * ORIGIN_DEVIATION
+        if nearest <= zero:
+            return RAYS_UNKNOWN, empty_rect()
+        spread = (largest * ORIGIN_DEVIATION
+                  + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (near + magnitude)) / nearest
+        grow = spread * buffers.view_cells_per_radian[view]
     b = screen_bounds(proj, c0, c1, c2)
     r = cell_rect(proj, b[0], b[1], b[2], b[3])
     x_min = b[0] - CELL_MARGIN - grow
@@ -411,6 +423,8 @@ def spread_cells(buffers: LightBuffers, view: int, p0: wp.vec3, p1: wp.vec3, p2:
     x_max = b[2] + CELL_MARGIN + grow
     y_max = b[3] + CELL_MARGIN + grow
     if x_max < zero or y_max < zero or x_min >= wp.float64(proj.width) or y_min >= wp.float64(proj.height):
+        if proj.orthographic != 0:
+            return RAYS_UNKNOWN, empty_rect()
         return RAYS_ELSEWHERE, empty_rect()
     # else the spread rectangle lies inside the view, in the same cells
     if x_min < zero or y_min < zero or x_max >= wp.float64(proj.width) or y_max >= wp.float64(proj.height):
@@ -446,12 +460,15 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
 
 @wp.struct
 class Pyramid:
-    """The segments from a triangle (the base, corners s0 s1 s2) to a point (the apex), by the
-    outward unit normals of its faces: the base's and the side through each base edge."""
-    apex: wp.vec3d
+    """The segments from a triangle (the base, corners s0 s1 s2) to a point (the apex: tops t0 =
+    t1 = t2), or a prism (tops t_i = s_i + a common vector), by the outward unit normals of its
+    faces: the base's and the side through each base edge (and its tops)."""
     s0: wp.vec3d
     s1: wp.vec3d
     s2: wp.vec3d
+    t0: wp.vec3d
+    t1: wp.vec3d
+    t2: wp.vec3d
     base: wp.vec3d
     side01: wp.vec3d
     side12: wp.vec3d
@@ -471,17 +488,24 @@ def outward_unit(n: wp.vec3d, point: wp.vec3d, inside: wp.vec3d) -> wp.vec3d:
 
 
 @wp.func
-def pyramid(apex: wp.vec3d, s0: wp.vec3d, s1: wp.vec3d, s2: wp.vec3d) -> Pyramid:
+def swept_solid(s0: wp.vec3d, s1: wp.vec3d, s2: wp.vec3d, t0: wp.vec3d, t1: wp.vec3d, t2: wp.vec3d) -> Pyramid:
     out = Pyramid()
-    out.apex = apex
     out.s0 = s0
     out.s1 = s1
     out.s2 = s2
-    out.base = outward_unit(wp.cross(s1 - s0, s2 - s0), s0, apex)
-    out.side01 = outward_unit(wp.cross(s1 - s0, apex - s0), s0, s2)
-    out.side12 = outward_unit(wp.cross(s2 - s1, apex - s1), s1, s0)
-    out.side20 = outward_unit(wp.cross(s0 - s2, apex - s2), s2, s1)
+    out.t0 = t0
+    out.t1 = t1
+    out.t2 = t2
+    out.base = outward_unit(wp.cross(s1 - s0, s2 - s0), s0, t0)
+    out.side01 = outward_unit(wp.cross(s1 - s0, t0 - s0), s0, s2)
+    out.side12 = outward_unit(wp.cross(s2 - s1, t1 - s1), s1, s0)
+    out.side20 = outward_unit(wp.cross(s0 - s2, t2 - s2), s2, s1)
     return out
+
+
+@wp.func
+def pyramid(apex: wp.vec3d, s0: wp.vec3d, s1: wp.vec3d, s2: wp.vec3d) -> Pyramid:
+    return swept_solid(s0, s1, s2, apex, apex, apex)
 
 
 @wp.func
@@ -493,8 +517,8 @@ def beyond_plane(n: wp.vec3d, point: wp.vec3d, q0: wp.vec3d, q1: wp.vec3d, q2: w
 
 @wp.func
 def pyramid_separated(solid: Pyramid, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, margin: wp.float64) -> bool:
-    """Whether triangle q lies farther than ``margin`` from the pyramid, shown by a separating
-    plane: one of the pyramid's four faces, or q's own. Conservative: False where no such plane
+    """Whether triangle q lies farther than ``margin`` from the pyramid (or prism), shown by a
+    separating plane: one of its faces through the base, or q's own. Conservative: False where no such plane
     shows it."""
     # first the faces through the apex, beside which lie most triangles the pyramid's cells list;
     # then the whole pyramid on one side of q's plane (neighbours across a concave crease, facing
@@ -509,21 +533,31 @@ def pyramid_separated(solid: Pyramid, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, 
         h0 = wp.dot(n, solid.s0 - q0)
         h1 = wp.dot(n, solid.s1 - q0)
         h2 = wp.dot(n, solid.s2 - q0)
-        h3 = wp.dot(n, solid.apex - q0)
-        low = wp.min(wp.min(h0, h1), wp.min(h2, h3))
-        high = wp.max(wp.max(h0, h1), wp.max(h2, h3))
+        h3 = wp.dot(n, solid.t0 - q0)
+        h4 = wp.dot(n, solid.t1 - q0)
+        h5 = wp.dot(n, solid.t2 - q0)
+        low = wp.min(wp.min(wp.min(h0, h1), wp.min(h2, h3)), wp.min(h4, h5))
+        high = wp.max(wp.max(wp.max(h0, h1), wp.max(h2, h3)), wp.max(h4, h5))
         if (low > wp.float64(0.0) and low * low > bound_sq) or (high < wp.float64(0.0) and high * high > bound_sq):
             return True
     return beyond_plane(solid.base, solid.s0, q0, q1, q2, margin)
 
 
 @wp.func
-def shrunk_pyramid(apex: wp.vec3d, d0: wp.vec3d, d1: wp.vec3d, d2: wp.vec3d, level: int) -> Pyramid:
-    """The pyramid from the triangle shrunk by INTERIOR_SHRINKS[level] about its centroid to ``apex``."""
+def shrunk_solid(proj: Projection, d0: wp.vec3d, d1: wp.vec3d, d2: wp.vec3d, level: int, far: float) -> Pyramid:
+    """What the shadow rays leaving the triangle shrunk by INTERIOR_SHRINKS[level] about its
+    centroid sweep, exactly: the pyramid from it to a pinhole view's eye (the light), or in a
+    parallel view the prism from it towards the light to the view's plane, behind every triangle
+    (``far`` bounds the triangle's depth)."""
     centroid = (d0 + d1 + d2) / wp.float64(3.0)
     keep = wp.float64(1.0) - wp.float64(INTERIOR_SHRINKS[level])
-    return pyramid(apex, centroid + (d0 - centroid) * keep, centroid + (d1 - centroid) * keep,
-                   centroid + (d2 - centroid) * keep)
+    s0 = centroid + (d0 - centroid) * keep
+    s1 = centroid + (d1 - centroid) * keep
+    s2 = centroid + (d2 - centroid) * keep
+    if proj.orthographic != 0:
+        sweep = towards_light(proj, centroid) * wp.float64(far)
+        return swept_solid(s0, s1, s2, s0 + sweep, s1 + sweep, s2 + sweep)
+    return pyramid(proj.eye, s0, s1, s2)
 
 
 @wp.func
@@ -531,12 +565,13 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
                          positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), p0: wp.vec3,
                          p1: wp.vec3, p2: wp.vec3, level: int) -> int:
     """The first of INTERIOR_SHRINKS from ``level`` on (INTERIOR_LEVELS for none) such that no
-    shadow ray leaving the triangle shrunk by it about its centroid and picking pinhole view ``view``
-    can meet a triangle (``level`` itself for a cube face the triangle lies wholly outside of).
+    shadow ray leaving the triangle shrunk by it about its centroid and picking view ``view`` can
+    meet a triangle (``level`` itself for a cube face the triangle lies wholly outside of).
 
     Such a ray starts within `deviation` (ORIGIN_DEVIATION) of the shrunk triangle and runs
-    towards the light, straying from the exact segment to it by at most `stray`: it lies within
-    `margin` of the pyramid between the shrunk triangle and the light. It can meet only triangles
+    towards the light, straying from the exact segment to it (or, for a directional light, to the
+    view's plane behind every triangle) by at most `stray`: it lies within `margin` of the pyramid
+    between the shrunk triangle and the light (the prism towards a directional one). It can meet only triangles
     its cells list nearer to the light than the triangle's farness, and none of those comes within
     `margin`, twice over, of that pyramid (the second `deviation` covers the ray-triangle test's
     own rounding, about a float32 ulp of the coordinates). Unlike the triangle's own plane, in
@@ -560,8 +595,8 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
     deviation = largest * ORIGIN_DEVIATION
     stray = wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (wp.float64(far) + magnitude)
     margin = wp.float64(2.0) * (deviation + stray) + magnitude * ORIGIN_DEVIATION
-    solid = shrunk_pyramid(proj.eye, d0, d1, d2, level)
-    smallest = shrunk_pyramid(proj.eye, d0, d1, d2, INTERIOR_LEVELS - 1)
+    solid = shrunk_solid(proj, d0, d1, d2, level, far)
+    smallest = shrunk_solid(proj, d0, d1, d2, INTERIOR_LEVELS - 1, far)
     checked = int(0)
     recent = RecentChecks(-1)
     for y in range(r[1], r[3] + 1):
@@ -588,10 +623,10 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
                         if not pyramid_separated(smallest, q0, q1, q2, margin):
                             return INTERIOR_LEVELS
                         level += 1
-                        solid = shrunk_pyramid(proj.eye, d0, d1, d2, level)
+                        solid = shrunk_solid(proj, d0, d1, d2, level, far)
                         while not pyramid_separated(solid, q0, q1, q2, margin):
                             level += 1
-                            solid = shrunk_pyramid(proj.eye, d0, d1, d2, level)
+                            solid = shrunk_solid(proj, d0, d1, d2, level, far)
     return level
 
 
@@ -616,7 +651,7 @@ def mark_clear_triangles(buffers: LightBuffers, light: int, positions: wp.array(
 @wp.kernel
 def mark_clear_interiors(buffers: LightBuffers, light: int, positions: wp.array(dtype=wp.vec3),
                          indices: wp.array(dtype=wp.int32), first: int, end: int):
-    """Per triangle of [first, end) not clear of ``light`` (pinhole views): INTERIOR_CLEAR + k where
+    """Per triangle of [first, end) not clear of ``light``: INTERIOR_CLEAR + k where
     no triangle can block a shadow ray leaving its interior shrunk by INTERIOR_SHRINKS[k], the
     first that works, in any view (buffers.triangle_clear)."""
     start = first + wp.tid() * ITEMS_PER_THREAD

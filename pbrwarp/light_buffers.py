@@ -47,7 +47,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
         positions, key, buffers, interiors_marked = cached
         if not interiors_marked:
-            _mark_triangles(lb.mark_clear_interiors, buffers, gpu, thread_count(threads))
+            _mark_triangles(lb.mark_clear_interiors, buffers, gpu, thread_count(threads), parallel_views=True)
             scene.__dict__["_light_buffers"] = (positions, key, buffers, True)
         return buffers
     threads = thread_count(threads)
@@ -131,17 +131,18 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     buffers.triangle_clear = wp.zeros(max(len(scene.lights) * triangles, 1), dtype=wp.uint8, device="cpu")
     buffers.triangles = triangles
     buffers.resolution = RESOLUTION
-    _mark_triangles(lb.mark_clear_triangles, buffers, gpu, threads)
+    _mark_triangles(lb.mark_clear_triangles, buffers, gpu, threads, parallel_views=False)
     scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers, False)
     return buffers
 
 
-def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int):
-    """``kernel`` (mark_clear_triangles or mark_clear_interiors) over every triangle and pinhole
-    light, in blocks spread over the threads."""
+def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int, parallel_views: bool):
+    """``kernel`` (mark_clear_triangles or mark_clear_interiors) over every triangle and light with
+    buffers (those of parallel views, directional lights', too if ``parallel_views``), in blocks
+    spread over the threads."""
     views = buffers.views.numpy()
     spans = buffers.light_views.numpy()
-    pinhole_lights = [k for k, (first, n) in enumerate(spans) if n and not views[first]["orthographic"]]
+    lights = [k for k, (first, n) in enumerate(spans) if n and (parallel_views or not views[first]["orthographic"])]
     triangles = buffers.triangles
     per_block = -(-triangles // (WORK_BLOCKS_PER_THREAD * threads))
 
@@ -151,7 +152,7 @@ def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int):
         wp.launch(kernel, dim=launch_threads(count), device="cpu",
                   inputs=[buffers, light, gpu.data.positions, gpu.data.indices, first, first + count])
 
-    run_all(mark, [(light, first) for light in pinhole_lights for first in range(0, triangles, per_block)], threads)
+    run_all(mark, [(light, first) for light in lights for first in range(0, triangles, per_block)], threads)
 
 
 def cells_per_radian(view: lb.Projection) -> float:
