@@ -26,18 +26,15 @@ from scenes import render_checked
 sample_light = light_sampler(True, True, True)
 
 
-@wp.kernel
-def verdicts(scene: SceneData, buffers: LightBuffers, light: int, faces: wp.array(dtype=int),
-             barycentrics: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.vec3i)):
-    """(light buffer verdict, BVH any-hit, lit by the light) for a shadow ray from a point on each
-    given triangle, spawned as the render kernel spawns them (it traces none outside a spot's cone)."""
-    i = wp.tid()
-    f = faces[i]
+@wp.func
+def spawned_shadow_ray(scene: SceneData, light: int, f: int, b0: float, b1: float, b2: float):
+    """(point, origin, direction, max_t) of the shadow ray towards ``light`` from the point of
+    triangle f with barycentric coordinates (b0, b1, b2) of its corners, spawned as the render
+    kernel spawns them."""
     p0 = scene.positions[scene.indices[3 * f]]
     p1 = scene.positions[scene.indices[3 * f + 1]]
     p2 = scene.positions[scene.indices[3 * f + 2]]
-    b = barycentrics[i]
-    p = p0 * b[0] + p1 * b[1] + p2 * (1.0 - b[0] - b[1])
+    p = p0 * b0 + p1 * b1 + p2 * b2
     data = scene.lights[light]
     to_light = -data.direction
     if data.kind != 1:
@@ -51,6 +48,19 @@ def verdicts(scene: SceneData, buffers: LightBuffers, light: int, faces: wp.arra
     if data.kind != 1:
         direction = wp.normalize(data.position - origin)
         max_t = wp.length(data.position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
+    return p, origin, direction, max_t
+
+
+@wp.kernel
+def verdicts(scene: SceneData, buffers: LightBuffers, light: int, faces: wp.array(dtype=int),
+             barycentrics: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.vec3i)):
+    """(light buffer verdict, BVH any-hit, lit by the light) for a shadow ray from a point on each
+    given triangle (it traces none outside a spot's cone)."""
+    i = wp.tid()
+    f = faces[i]
+    b = barycentrics[i]
+    p, origin, direction, max_t = spawned_shadow_ray(scene, light, f, b[0], b[1], 1.0 - b[0] - b[1])
+    data = scene.lights[light]
     verdict, blocker = light_buffer_occlusion(buffers, light, data.position, scene.positions, scene.indices, origin,
                                               direction, max_t, f)
     reached = wp.where(sample_light(data, p).irradiance == wp.vec3(0.0), 0, 1)
@@ -64,26 +74,10 @@ def interior_rays(scene: SceneData, buffers: LightBuffers, light: int, faces: wp
     given barycentrics of its corners) as lit without a query, BVH any-hit, lit by the light)."""
     i = wp.tid()
     f = faces[i]
-    p0 = scene.positions[scene.indices[3 * f]]
-    p1 = scene.positions[scene.indices[3 * f + 1]]
-    p2 = scene.positions[scene.indices[3 * f + 2]]
     b = barycentrics[i]
-    p = p0 * b[0] + p1 * b[1] + p2 * b[2]
-    data = scene.lights[light]
-    to_light = -data.direction
-    if data.kind != 1:
-        to_light = wp.normalize(data.position - p)
-    ng = wp.normalize(wp.cross(p1 - p0, p2 - p0))
-    if wp.dot(ng, to_light) < 0.0:
-        ng = -ng
-    origin = offset_ray_origin(p, triangle_hit_error(p0, p1, p2), ng, to_light)
-    direction = to_light
-    max_t = RAY_FAR
-    if data.kind != 1:
-        direction = wp.normalize(data.position - origin)
-        max_t = wp.length(data.position - origin) * (1.0 - SHADOW_RAY_SHORTENING)
+    p, origin, direction, max_t = spawned_shadow_ray(scene, light, f, b[0], b[1], b[2])
     skipped = wp.where(ray_leaves_clear(buffers, light, f, b[0], b[1], b[2]), 1, 0)
-    reached = wp.where(sample_light(data, p).irradiance == wp.vec3(0.0), 0, 1)
+    reached = wp.where(sample_light(scene.lights[light], p).irradiance == wp.vec3(0.0), 0, 1)
     out[i] = wp.vec3i(skipped, wp.where(wp.mesh_query_ray_anyhit(scene.mesh, origin, direction, max_t), 1, 0), reached)
 
 
