@@ -459,7 +459,7 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
 
 
 @wp.struct
-class Pyramid:
+class SweptSolid:
     """The segments from a triangle (the base, corners s0 s1 s2) to a point (the apex: tops t0 =
     t1 = t2), or a prism (tops t_i = s_i + a common vector), by the outward unit normals of its
     faces: the base's and the side through each base edge (and its tops)."""
@@ -488,8 +488,8 @@ def outward_unit(n: wp.vec3d, point: wp.vec3d, inside: wp.vec3d) -> wp.vec3d:
 
 
 @wp.func
-def swept_solid(s0: wp.vec3d, s1: wp.vec3d, s2: wp.vec3d, t0: wp.vec3d, t1: wp.vec3d, t2: wp.vec3d) -> Pyramid:
-    out = Pyramid()
+def swept_solid(s0: wp.vec3d, s1: wp.vec3d, s2: wp.vec3d, t0: wp.vec3d, t1: wp.vec3d, t2: wp.vec3d) -> SweptSolid:
+    out = SweptSolid()
     out.s0 = s0
     out.s1 = s1
     out.s2 = s2
@@ -504,7 +504,7 @@ def swept_solid(s0: wp.vec3d, s1: wp.vec3d, s2: wp.vec3d, t0: wp.vec3d, t1: wp.v
 
 
 @wp.func
-def pyramid(apex: wp.vec3d, s0: wp.vec3d, s1: wp.vec3d, s2: wp.vec3d) -> Pyramid:
+def pyramid(apex: wp.vec3d, s0: wp.vec3d, s1: wp.vec3d, s2: wp.vec3d) -> SweptSolid:
     return swept_solid(s0, s1, s2, apex, apex, apex)
 
 
@@ -516,13 +516,13 @@ def beyond_plane(n: wp.vec3d, point: wp.vec3d, q0: wp.vec3d, q1: wp.vec3d, q2: w
 
 
 @wp.func
-def pyramid_separated(solid: Pyramid, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, margin: wp.float64) -> bool:
-    """Whether triangle q lies farther than ``margin`` from the pyramid (or prism), shown by a
-    separating plane: one of its faces through the base, or q's own. Conservative: False where no such plane
+def solid_separated(solid: SweptSolid, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, margin: wp.float64) -> bool:
+    """Whether triangle q lies farther than ``margin`` from the solid, shown by a separating plane:
+    one of the solid's faces through its base, or q's own. Conservative: False where no such plane
     shows it."""
-    # first the faces through the apex, beside which lie most triangles the pyramid's cells list;
-    # then the whole pyramid on one side of q's plane (neighbours across a concave crease, facing
-    # the light too); then the base
+    # first the faces through the base's edges, beside which lie most triangles the solid's cells
+    # list; then the whole solid on one side of q's plane (neighbours across a concave crease,
+    # facing the light too); then the base
     if (beyond_plane(solid.side01, solid.s0, q0, q1, q2, margin)
             or beyond_plane(solid.side12, solid.s1, q0, q1, q2, margin)
             or beyond_plane(solid.side20, solid.s2, q0, q1, q2, margin)):
@@ -544,7 +544,7 @@ def pyramid_separated(solid: Pyramid, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d, 
 
 
 @wp.func
-def shrunk_solid(proj: Projection, d0: wp.vec3d, d1: wp.vec3d, d2: wp.vec3d, level: int, far: float) -> Pyramid:
+def shrunk_solid(proj: Projection, d0: wp.vec3d, d1: wp.vec3d, d2: wp.vec3d, level: int, far: float) -> SweptSolid:
     """What the shadow rays leaving the triangle shrunk by INTERIOR_SHRINKS[level] about its
     centroid sweep, exactly: the pyramid from it to a pinhole view's eye (the light), or in a
     parallel view the prism from it towards the light to the view's plane, behind every triangle
@@ -569,15 +569,16 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
     meet a triangle (``level`` itself for a cube face the triangle lies wholly outside of).
 
     Such a ray starts within `deviation` (ORIGIN_DEVIATION) of the shrunk triangle and runs
-    towards the light, straying from the exact segment to it (or, for a directional light, to the
-    view's plane behind every triangle) by at most `stray`: it lies within `margin` of the pyramid
-    between the shrunk triangle and the light (the prism towards a directional one). It can meet only triangles
-    its cells list nearer to the light than the triangle's farness, and none of those comes within
-    `margin`, twice over, of that pyramid (the second `deviation` covers the ray-triangle test's
-    own rounding, about a float32 ulp of the coordinates). Unlike the triangle's own plane, in
-    front of which its neighbours across a concave crease rise, the pyramid leaves them out where
-    they face the light too or lean away from it. A smaller shrink's pyramid holds a larger one's,
-    so a triangle clear of it is clear of every later one."""
+    towards the light, straying from the exact segment to it (for a directional light, to the
+    view's plane behind every triangle) by at most `stray`: it lies within deviation + stray of
+    the solid the shrunk triangle sweeps towards the light (shrunk_solid). It can meet only
+    triangles its cells list nearer to the light than the triangle's farness, and none of those
+    comes within `margin` of that solid: twice deviation + stray, and ORIGIN_DEVIATION of the
+    coordinates' magnitude for the ray-triangle test's own rounding (about a float32 ulp).
+    Unlike the triangle's own plane, in front of which its neighbours across a concave crease
+    rise, the solid leaves them out where they face the light too or lean away from it. A
+    smaller shrink's solid holds a larger one's, so a triangle clear of it is clear of every
+    later one."""
     if level >= INTERIOR_LEVELS:
         return INTERIOR_LEVELS
     where, r = spread_cells(buffers, view, p0, p1, p2)
@@ -618,13 +619,13 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
                     q0 = to_double(positions[c[0]])
                     q1 = to_double(positions[c[1]])
                     q2 = to_double(positions[c[2]])
-                    if not pyramid_separated(solid, q0, q1, q2, margin):
-                        # a later shrink's smaller pyramid, if the smallest one is clear of q
-                        if not pyramid_separated(smallest, q0, q1, q2, margin):
+                    if not solid_separated(solid, q0, q1, q2, margin):
+                        # a later shrink's smaller solid, if the smallest one is clear of q
+                        if not solid_separated(smallest, q0, q1, q2, margin):
                             return INTERIOR_LEVELS
                         level += 1
                         solid = shrunk_solid(proj, d0, d1, d2, level, far)
-                        while not pyramid_separated(solid, q0, q1, q2, margin):
+                        while not solid_separated(solid, q0, q1, q2, margin):
                             level += 1
                             solid = shrunk_solid(proj, d0, d1, d2, level, far)
     return level

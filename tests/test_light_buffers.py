@@ -14,7 +14,7 @@ import pbrwarp as pw
 from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.lights import light_sampler
 from pbrwarp.kernels.light_buffer import (CLEAR, INTERIOR_CLEAR, INTERIOR_SHRINKS, UNDECIDED, LightBuffers,
-                                          light_buffer_occlusion, pyramid, pyramid_separated, ray_leaves_clear)
+                                          light_buffer_occlusion, ray_leaves_clear, solid_separated, swept_solid)
 from pbrwarp.kernels.robust import RAY_FAR, SHADOW_RAY_SHORTENING, offset_ray_origin, triangle_hit_error
 from pbrwarp.kernels.scene_data import SceneData
 from pbrwarp.light_buffers import build, no_light_buffers
@@ -232,9 +232,11 @@ def test_rays_from_a_clear_interior_are_never_shadowed(light, mesh):
 @wp.kernel
 def separations(solids: wp.array(dtype=wp.vec3d, ndim=2), triangles: wp.array(dtype=wp.vec3d, ndim=2),
                 margin: wp.float64, out: wp.array(dtype=int)):
+    """Per row: a base triangle (solids[i, 0:3]) and its tops (solids[i, 3:6]: one apex thrice, or
+    the base moved by a vector), against triangles[i]."""
     i = wp.tid()
-    solid = pyramid(solids[i, 0], solids[i, 1], solids[i, 2], solids[i, 3])
-    out[i] = wp.where(pyramid_separated(solid, triangles[i, 0], triangles[i, 1], triangles[i, 2], margin), 1, 0)
+    solid = swept_solid(solids[i, 0], solids[i, 1], solids[i, 2], solids[i, 3], solids[i, 4], solids[i, 5])
+    out[i] = wp.where(solid_separated(solid, triangles[i, 0], triangles[i, 1], triangles[i, 2], margin), 1, 0)
 
 
 def convex_samples(corners, count, rng):
@@ -243,17 +245,25 @@ def convex_samples(corners, count, rng):
     return np.vstack([weights @ corners, corners])
 
 
-def test_pyramid_separation_is_never_claimed_within_the_margin():
-    """pyramid_separated(apex, base, q) claims a separating plane: wherever it does, no point of
-    the pyramid (the segments from its base to its apex) lies within the margin of a point of q
-    (dense samples of both, float64); it finds one for a neighbour that faces the light across a
-    concave crease (which the base triangle's own plane does not exclude) and for one bent away
-    from it, and none for triangles that reach into the pyramid."""
+@pytest.mark.parametrize("kind", ["pyramid", "prism"])
+def test_solid_separation_is_never_claimed_within_the_margin(kind):
+    """solid_separated(solid, q, margin) claims a separating plane: wherever it does, no point of
+    the solid (the segments from its base to its apex, for a point light; the prism the base
+    sweeps along a vector, for a directional one) lies within the margin of a point of q (dense
+    samples of both, float64); it finds one for a neighbour that faces the light across a concave
+    crease (which the base triangle's own plane does not exclude) and for one bent away from it,
+    and none for triangles that reach into the solid."""
     rng = np.random.default_rng(4)
     n = 400
     apex = np.array([0.0, 0.0, 5.0])
     base = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-    solids = np.repeat(np.vstack([apex, base])[None], n, axis=0) + rng.normal(0.0, 0.2, (n, 4, 3))
+
+    def with_tops(bases, lift):
+        tops = np.repeat(lift[:, None, :], 3, axis=1) if kind == "pyramid" else bases + lift[:, None, :]
+        return np.concatenate([bases, tops], axis=1)
+
+    bases = base[None] + rng.normal(0.0, 0.2, (n, 3, 3))
+    solids = with_tops(bases, apex + rng.normal(0.0, 0.2, (n, 3)))
     triangles = rng.normal(0.0, 1.0, (n, 3, 3)) * 0.6 + [0.4, 0.4, 0.4]
     margin = 0.05
     out = wp.empty(n, dtype=int)
@@ -275,7 +285,7 @@ def test_pyramid_separation_is_never_claimed_within_the_margin():
     keep = 0.9
     centroid = base.mean(axis=0)
     shrunk = centroid + (base - centroid) * keep
-    solids = np.array([np.vstack([apex, shrunk])] * len(cases))
+    solids = with_tops(np.array([shrunk] * len(cases)), np.array([apex] * len(cases)))
     triangles = np.array([np.vstack([edge, tip]) for tip, _ in cases.values()])
     wp.launch(separations, dim=len(cases), inputs=[wp.array(solids, dtype=wp.vec3d),
                                                    wp.array(triangles, dtype=wp.vec3d), 1e-4, out])
