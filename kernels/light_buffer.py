@@ -11,8 +11,9 @@ can meet one, so T's entry there is marked clear; a triangle clear in every cell
 land in (pinhole views) is marked clear of the light, and its rays are lit without a query. On a
 convex surface that is every triangle facing the light. On a noisy scanned one, neighbours across
 concave creases rise in front of each other's planes; there a triangle's interior (the triangle
-shrunk about its centroid) is marked clear where no listed triangle comes near the pyramid between
-it and the light, and rays leaving that interior are lit without a query too.
+shrunk about its centroid) is marked clear where no listed triangle comes near the solid its rays
+sweep towards the light (a pyramid to a point or spot light, a prism towards a directional one),
+and rays leaving that interior are lit without a query too.
 
 Views are the shadow maps' (kernels/shadow_map.py): a cube of six for point lights and wide spot
 lights, one pinhole view for narrow spots, a parallel view behind the scene for directional lights,
@@ -80,7 +81,7 @@ ORIGIN_DEVIATION = wp.constant(wp.float64(1.0e-5))
 # asked, since neighbouring pixels are mostly shadowed by the same triangle.
 SHADOW_CACHE_LIGHTS = wp.constant(4)
 # triangle_clear codes: no mark, every ray of the triangle clear, or (INTERIOR_CLEAR + k) the rays
-# leaving its part shrunk about its centroid by INTERIOR_SHRINKS[k] clear (see interior_is_clear).
+# leaving its part shrunk about its centroid by INTERIOR_SHRINKS[k] clear (interior_clear_level).
 NOT_CLEAR = wp.constant(wp.uint8(0))
 CLEAR = wp.constant(wp.uint8(1))
 INTERIOR_CLEAR = wp.constant(wp.uint8(2))
@@ -370,10 +371,19 @@ def finish_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.
         mark_clear_entries(positions, indices, proj, e, cell_start, cell_faces, cell_near, cell_clear)
 
 
-# what spread_cells found of a triangle's shadow rays in a pinhole view
+# what spread_cells found of a triangle's shadow rays in a view
 RAYS_ELSEWHERE = wp.constant(0)  # they pick another view (a cube face the triangle lies wholly outside of)
 RAYS_IN_CELLS = wp.constant(1)  # they land in the cells of the rectangle returned
 RAYS_UNKNOWN = wp.constant(2)  # they may leave the view or its same cells
+
+
+@wp.func
+def ray_stray(largest: wp.float64, travel: wp.float64, magnitude: wp.float64) -> wp.float64:
+    """A bound on how far a shadow ray leaving a triangle (whose largest coordinate is ``largest``)
+    lies from the exact segment from the triangle towards the light, within ``travel`` of its
+    start: its origin's deviation and its float32 direction's rounding (``magnitude`` bounds the
+    coordinates of the triangle and the light)."""
+    return largest * ORIGIN_DEVIATION + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (travel + magnitude)
 
 
 @wp.func
@@ -398,7 +408,7 @@ def spread_cells(buffers: LightBuffers, view: int, p0: wp.vec3, p1: wp.vec3, p2:
         if c0[2] <= zero or c1[2] <= zero or c2[2] <= zero:
             return RAYS_UNKNOWN, empty_rect()
         depth = wp.max(c0[2], wp.max(c1[2], c2[2]))
-        stray = largest * ORIGIN_DEVIATION + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (depth + magnitude)
+        stray = ray_stray(largest, depth, magnitude)
         # cells per world unit: the view's rows scale world units to half-extents
         row_x = wp.vec3d(proj.to_camera[0, 0], proj.to_camera[0, 1], proj.to_camera[0, 2])
         row_y = wp.vec3d(proj.to_camera[1, 0], proj.to_camera[1, 1], proj.to_camera[1, 2])
@@ -413,8 +423,7 @@ def spread_cells(buffers: LightBuffers, view: int, p0: wp.vec3, p1: wp.vec3, p2:
         nearest = near - largest * ORIGIN_DEVIATION
         if nearest <= zero:
             return RAYS_UNKNOWN, empty_rect()
-        spread = (largest * ORIGIN_DEVIATION
-                  + wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (near + magnitude)) / nearest
+        spread = ray_stray(largest, near, magnitude) / nearest
         grow = spread * buffers.view_cells_per_radian[view]
     b = screen_bounds(proj, c0, c1, c2)
     r = cell_rect(proj, b[0], b[1], b[2], b[3])
@@ -568,13 +577,13 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
     shadow ray leaving the triangle shrunk by it about its centroid and picking view ``view`` can
     meet a triangle (``level`` itself for a cube face the triangle lies wholly outside of).
 
-    Such a ray starts within `deviation` (ORIGIN_DEVIATION) of the shrunk triangle and runs
-    towards the light, straying from the exact segment to it (for a directional light, to the
-    view's plane behind every triangle) by at most `stray`: it lies within deviation + stray of
-    the solid the shrunk triangle sweeps towards the light (shrunk_solid). It can meet only
-    triangles its cells list nearer to the light than the triangle's farness, and none of those
-    comes within `margin` of that solid: twice deviation + stray, and ORIGIN_DEVIATION of the
-    coordinates' magnitude for the ray-triangle test's own rounding (about a float32 ulp).
+    Such a ray starts within ORIGIN_DEVIATION of the shrunk triangle and runs towards the light,
+    straying from the exact segment to it (for a directional light, to the view's plane behind
+    every triangle) by at most ray_stray: it lies within that of the solid the shrunk triangle
+    sweeps towards the light (shrunk_solid). It can meet only triangles its cells list nearer to
+    the light than the triangle's farness, and none of those comes within `margin` of that solid:
+    twice ray_stray, and ORIGIN_DEVIATION of the coordinates' magnitude for the ray-triangle
+    test's own rounding (about a float32 ulp).
     Unlike the triangle's own plane, in front of which its neighbours across a concave crease
     rise, the solid leaves them out where they face the light too or lean away from it. A
     smaller shrink's solid holds a larger one's, so a triangle clear of it is clear of every
@@ -593,9 +602,7 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
     largest = wp.max(largest_coordinate(d0), wp.max(largest_coordinate(d1), largest_coordinate(d2)))
     magnitude = wp.max(largest, largest_coordinate(proj.eye))
     far = farness(proj, d0, d1, d2)
-    deviation = largest * ORIGIN_DEVIATION
-    stray = wp.float64(2.0) * wp.float64(DIRECTION_ROUNDING) * (wp.float64(far) + magnitude)
-    margin = wp.float64(2.0) * (deviation + stray) + magnitude * ORIGIN_DEVIATION
+    margin = wp.float64(2.0) * ray_stray(largest, wp.float64(far), magnitude) + magnitude * ORIGIN_DEVIATION
     solid = shrunk_solid(proj, d0, d1, d2, level, far)
     smallest = shrunk_solid(proj, d0, d1, d2, INTERIOR_LEVELS - 1, far)
     checked = int(0)

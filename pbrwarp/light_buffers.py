@@ -3,8 +3,8 @@ triangles seen through each cell of a grid of directions, nearest first. Built o
 the same views as the shadow maps and kept on the scene while its geometry and the lights'
 placement stay the same; a shadow ray tests a handful of triangles instead of walking the BVH, or
 none from a triangle marked clear of the light (nothing nearer to the light in its cells lies in
-front of its plane) or from the marked interior of one (nothing comes near the pyramid between
-that interior and a point or spot light)."""
+front of its plane) or from the marked interior of one (nothing comes near the solid that
+interior's rays sweep towards the light)."""
 
 from __future__ import annotations
 
