@@ -7,7 +7,8 @@ the rasterized visibility buffer alone; whole frames (visibility "raster") witho
 without the depth and normal outputs, then with the diffuse lobe's albedo coupling replaced by the
 cheapest coupling ("none", no table lookups), then with shadow rays through the light buffers
 kept from an earlier frame, and the same with their triangle interiors' clear marks dropped for
-the frame; and building the light buffers. Differences between these are the parts' costs.
+the frame; building the light buffers, and marking their interiors (as on their first reuse).
+Differences between these are the parts' costs.
 Writes bench/results/frame_parts.{md,json}.
 """
 
@@ -32,7 +33,12 @@ from pbrwarp.raster import reused_buffer, visibility_buffer  # noqa: E402
 from pbrwarp.render import _camera_data  # noqa: E402
 
 PARTS = ("raster only", "no shadows", "no shadows, no AOVs", "no shadows, coupling none", "shadow rays",
-         "shadow rays, no interior marks", "light buffers built")
+         "shadow rays, no interior marks", "light buffers built", "interiors marked")
+
+
+def without_interiors(marks: np.ndarray) -> np.ndarray:
+    """Light buffer triangle marks with the interiors' dropped (whole triangles' kept)."""
+    return np.where(marks >= int(INTERIOR_CLEAR), int(NOT_CLEAR), marks).astype(np.uint8)
 
 
 def variants(scene, camera, size, threads):
@@ -52,11 +58,17 @@ def variants(scene, camera, size, threads):
         # the kept buffers' marks, less the interiors', for one frame (the same compiled kernel)
         buffers = light_buffers.build(scene, gpu, threads)
         marks = buffers.triangle_clear.numpy().copy()
-        buffers.triangle_clear.assign(np.where(marks >= int(INTERIOR_CLEAR), int(NOT_CLEAR), marks).astype(np.uint8))
+        buffers.triangle_clear.assign(without_interiors(marks))
         try:
             frame(shadows="rays")()
         finally:
             buffers.triangle_clear.assign(marks)
+
+    def mark_interiors():
+        # the kept buffers' interiors marked again from the whole triangles' marks
+        buffers = light_buffers.build(scene, gpu, threads)
+        buffers.triangle_clear.assign(without_interiors(buffers.triangle_clear.numpy()))
+        light_buffers.mark_interiors(buffers, gpu, threads)
 
     return dict(zip(PARTS, (
         lambda: visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads, out=out,
@@ -67,7 +79,16 @@ def variants(scene, camera, size, threads):
         frame(shadows="rays"),
         without_interior_marks,
         build,
+        mark_interiors,
     )))
+
+
+def interior_share(scene, gpu) -> float:
+    """The share of the scene's triangles whose interiors its kept light buffers mark clear of
+    its first light."""
+    buffers = light_buffers.build(scene, gpu)
+    marks = buffers.triangle_clear.numpy()[: buffers.triangles]
+    return float((marks >= int(INTERIOR_CLEAR)).mean())
 
 
 def main(argv=None):
@@ -82,21 +103,25 @@ def main(argv=None):
         scene, camera = scene_on_floor(mesh)
         for threads in sorted({1, cores}):
             times = interleaved_medians(variants(scene, camera, args.size, threads), args.repeats)
-            row = {"scene": name, "threads": threads, **{part: 1e3 * times[part] for part in PARTS}}
+            row = {"scene": name, "threads": threads, **{part: 1e3 * times[part] for part in PARTS},
+                   "interior marks": interior_share(scene, upload(scene))}
             rows.append(row)
             print(row, file=sys.stderr)
     lines = [f"| scene ({args.size}², 1 point light, visibility raster) | threads | "
-             + " | ".join(f"{p} ms" for p in PARTS) + " |",
-             "|---|---|" + "---|" * len(PARTS)]
+             + " | ".join(f"{p} ms" for p in PARTS) + " | triangles with interior marks |",
+             "|---|---|" + "---|" * (len(PARTS) + 1)]
     for r in rows:
-        lines.append(f"| {r['scene']} | {r['threads']} | " + " | ".join(f"{r[p]:.1f}" for p in PARTS) + " |")
+        lines.append(f"| {r['scene']} | {r['threads']} | " + " | ".join(f"{r[p]:.1f}" for p in PARTS)
+                     + f" | {100 * r['interior marks']:.1f}% |")
     lines += ["", "Medians of interleaved rounds after a warm-up. \"raster only\": the visibility buffer alone "
               "(back faces culled as renders cull them); frames: pw.render with visibility=\"raster\", "
               "spp 1; \"coupling none\": the diffuse lobe's albedo coupling (two table lookups and a mean "
               "per evaluation) replaced by none; \"shadow rays\": through light buffers kept from an "
               "earlier frame (their triangle interiors marked on their first reuse); \"no interior marks\": "
               "the same with those marks dropped for the frame; \"light buffers built\": "
-              "pbrwarp.light_buffers.build for the scene's one point light (six 512² faces)."]
+              "pbrwarp.light_buffers.build for the scene's one point light (six 512² faces), without "
+              "interior marks; \"interiors marked\": pbrwarp.light_buffers.mark_interiors, as on the "
+              "buffers' first reuse; the last column: the share of triangles whose interiors are marked."]
     command = command_line(ap, args)
     write_results("frame_parts", command, {"rows": rows}, "\n".join(lines) + "\n")
 

@@ -47,7 +47,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
         positions, key, buffers, interiors_marked = cached
         if not interiors_marked:
-            _mark_triangles(lb.mark_clear_interiors, buffers, gpu, thread_count(threads), parallel_views=True)
+            mark_interiors(buffers, gpu, thread_count(threads))
             scene.__dict__["_light_buffers"] = (positions, key, buffers, True)
         return buffers
     threads = thread_count(threads)
@@ -134,6 +134,12 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     _mark_triangles(lb.mark_clear_triangles, buffers, gpu, threads, parallel_views=False)
     scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers, False)
     return buffers
+
+
+def mark_interiors(buffers: lb.LightBuffers, gpu, threads: int):
+    """Mark the interiors of ``buffers``' triangles not clear of their lights as a whole
+    (kernels/light_buffer.mark_clear_interiors), every light's; build does it on the first reuse."""
+    _mark_triangles(lb.mark_clear_interiors, buffers, gpu, threads, parallel_views=True)
 
 
 def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int, parallel_views: bool):
