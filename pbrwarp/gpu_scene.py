@@ -3,6 +3,10 @@
 Geometry (with its BVH) and texels are cached on the Scene and rebuilt only when its meshes or
 textures change; materials and lights are small and re-uploaded on every render, so editing a
 light or a material factor between renders takes effect without rebuilding anything.
+
+The primitives' triangles and vertices are merged into one mesh and stored in locality order
+(pbrwarp/locality.py), so a triangle or vertex index in the kernels is not its index in the
+primitive: face_material says which primitive a triangle came from.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import warp as wp
 
 from .errors import InputError
 from .lights import SPOT
+from .locality import inverse_permutation, locality_order
 from .materials import Material
 from .scene import unit_rows
 from .textures import WRAP_MODES
@@ -97,7 +102,11 @@ def _build_geometry(prims, key) -> _Geometry:
     tangents = column([_primitive_tangents(p) for p in prims], 4, 0.0).astype(np.float32)
     colors = column([p.colors for p in prims], 4, 1.0).astype(np.float32)
     face_primitive = np.concatenate([np.full(len(p.faces), i, np.int32) for i, p in enumerate(prims)])
-    wp_positions = wp.array(positions, dtype=wp.vec3, device="cpu")
+    # stored in an order that keeps neighbours near in memory (pbrwarp/locality.py)
+    face_order, vertex_order = locality_order(wp.array(positions, dtype=wp.vec3, device="cpu"),
+                                              wp.array(indices, dtype=wp.int32, device="cpu"))
+    indices = inverse_permutation(vertex_order)[indices.reshape(-1, 3)[face_order]].astype(np.int32).reshape(-1)
+    wp_positions = wp.array(positions[vertex_order], dtype=wp.vec3, device="cpu")
     wp_indices = wp.array(indices, dtype=wp.int32, device="cpu")
     mesh = wp.Mesh(points=wp_positions, indices=wp_indices)
     return _Geometry(
@@ -105,11 +114,11 @@ def _build_geometry(prims, key) -> _Geometry:
         mesh=mesh,
         positions=wp_positions,
         indices=wp_indices,
-        normals=wp.array(normals, dtype=wp.vec3, device="cpu"),
-        uvs=wp.array(uvs, dtype=wp.vec2, device="cpu"),
-        tangents=wp.array(tangents, dtype=wp.vec4, device="cpu"),
-        colors=wp.array(colors, dtype=wp.vec4, device="cpu"),
-        face_primitive=wp.array(face_primitive, dtype=wp.int32, device="cpu"),
+        normals=wp.array(normals[vertex_order], dtype=wp.vec3, device="cpu"),
+        uvs=wp.array(uvs[vertex_order], dtype=wp.vec2, device="cpu"),
+        tangents=wp.array(tangents[vertex_order], dtype=wp.vec4, device="cpu"),
+        colors=wp.array(colors[vertex_order], dtype=wp.vec4, device="cpu"),
+        face_primitive=wp.array(face_primitive[face_order], dtype=wp.int32, device="cpu"),
     )
 
 

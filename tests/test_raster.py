@@ -76,19 +76,23 @@ def triangle_ids(buffer: wp.array2d(dtype=wp.uint64), out: wp.array2d(dtype=int)
 
 
 class Geometry:
-    """A scene's merged positions, indices and BVH, as the renderer uploads them."""
+    """A mesh's positions, indices and BVH: a scene's as the renderer uploads them, or those given."""
 
-    def __init__(self, scene):
-        geometry = upload(scene)._keep[0]
-        self.positions, self.indices, self.mesh = geometry.positions, geometry.indices, geometry.mesh
-        self.vertices = geometry.positions.numpy().astype(np.float64)
-        self.faces = geometry.indices.numpy().reshape(-1, 3)
+    def __init__(self, scene=None, positions=None, indices=None, mesh=None):
+        if scene is not None:
+            geometry = upload(scene)._keep[0]
+            positions, indices, mesh = geometry.positions, geometry.indices, geometry.mesh
+        self.positions, self.indices, self.mesh = positions, indices, mesh
+        self.vertices = positions.numpy().astype(np.float64)
+        self.faces = indices.numpy().reshape(-1, 3)
 
 
 def mesh_geometry(vertices, faces):
-    scene = pw.Scene()
-    scene.add_mesh(pw.Primitive(np.asarray(vertices, float), np.asarray(faces), pw.Material()))
-    return Geometry(scene)
+    """Vertices and faces kept in the order given (upload would reorder them for locality), as
+    tests name them."""
+    positions = wp.array(np.asarray(vertices, np.float32), dtype=wp.vec3, device="cpu")
+    indices = wp.array(np.asarray(faces, np.int32).reshape(-1), dtype=wp.int32, device="cpu")
+    return Geometry(positions=positions, indices=indices, mesh=wp.Mesh(points=positions, indices=indices))
 
 
 def raster(geom, cam, spp=1, seed=0, threads=None, faces=None):
