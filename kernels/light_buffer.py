@@ -32,8 +32,7 @@ from .raster import (
     clipped_rect,
     empty_rect,
     ray_triangle_intersection,
-    screen_x,
-    screen_y,
+    screen_point,
     triangle_corners,
 )
 from .robust import RAY_FAR
@@ -179,14 +178,11 @@ def triangle_cells(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -> w
 def screen_bounds(proj: Projection, c0: wp.vec3d, c1: wp.vec3d, c2: wp.vec3d) -> wp.vec4d:
     """(x_min, y_min, x_max, y_max), in cells, of a triangle wholly in front of the view, given
     its vertices' camera coordinates."""
-    x0 = screen_x(proj, c0)
-    x1 = screen_x(proj, c1)
-    x2 = screen_x(proj, c2)
-    y0 = screen_y(proj, c0)
-    y1 = screen_y(proj, c1)
-    y2 = screen_y(proj, c2)
-    return wp.vec4d(wp.min(x0, wp.min(x1, x2)), wp.min(y0, wp.min(y1, y2)), wp.max(x0, wp.max(x1, x2)),
-                    wp.max(y0, wp.max(y1, y2)))
+    s0 = screen_point(proj, c0)
+    s1 = screen_point(proj, c1)
+    s2 = screen_point(proj, c2)
+    return wp.vec4d(wp.min(s0[0], wp.min(s1[0], s2[0])), wp.min(s0[1], wp.min(s1[1], s2[1])),
+                    wp.max(s0[0], wp.max(s1[0], s2[0])), wp.max(s0[1], wp.max(s1[1], s2[1])))
 
 
 @wp.func
@@ -799,9 +795,9 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
         # up to t_end: its projection stays within `drift` cells of the origin's, and if that lies
         # so far inside a cell, the whole ray stays in it.
         if co[2] > wp.float64(0.0) and slack * reach <= FAST_PATH_SLACK_SHARE * clearance:
-            inverse_z = wp.float64(1.0) / co[2]
-            xo = (co[0] * inverse_z + wp.float64(1.0)) * proj.half_width
-            yo = (wp.float64(1.0) - co[1] * inverse_z) * proj.half_height
+            so = screen_point(proj, co)
+            xo = so[0]
+            yo = so[1]
             drift = (wp.float64(2.0) * slack * reach / (CLEAR_RADIUS_SHARE * clearance)
                      * buffers.view_cells_per_radian[view] + CELL_MARGIN)
             fx = wp.floor(xo)
@@ -817,10 +813,12 @@ def light_buffer_occlusion(buffers: LightBuffers, light: int, light_position: wp
     ce = proj.to_camera * (end - proj.eye)
     if proj.orthographic == 0 and (co[2] <= wp.float64(0.0) or ce[2] <= wp.float64(0.0)):
         return UNDECIDED, -1
-    xo = screen_x(proj, co)
-    yo = screen_y(proj, co)
-    xe = screen_x(proj, ce)
-    ye = screen_y(proj, ce)
+    so = screen_point(proj, co)
+    se = screen_point(proj, ce)
+    xo = so[0]
+    yo = so[1]
+    xe = se[0]
+    ye = se[1]
     r = cell_rect(proj, wp.min(xo, xe), wp.min(yo, ye), wp.max(xo, xe), wp.max(yo, ye))
     if r[0] > r[2]:
         return UNDECIDED, -1

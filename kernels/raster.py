@@ -42,6 +42,9 @@ HALF_PIXEL = wp.constant(wp.int64(2048))
 # below 2^29 and samples (images up to MAX_IMAGE_SIZE) below 2^28, so an edge function
 # A X + B Y + C stays below 2^61 and is computed exactly.
 GUARD_BAND = wp.constant(wp.float64(131072.0))
+# Snapped coordinates within the guard band plus 2^30 are positive (see snap_signed).
+SNAP_SHIFT = wp.constant(wp.int64(1073741824))
+SNAP_OFFSET = wp.constant(wp.float64(1073741824.5))
 MAX_IMAGE_SIZE = 65536
 # Screen tiles are TILE_SIZE x TILE_SIZE pixels; each is rasterized by one thread, alone.
 TILE_SIZE = wp.constant(32)
@@ -241,17 +244,14 @@ def camera_coordinates(proj: Projection, p: wp.vec3) -> wp.vec3d:
 
 
 @wp.func
-def screen_x(proj: Projection, c: wp.vec3d) -> wp.float64:
+def screen_point(proj: Projection, c: wp.vec3d) -> wp.vec2d:
+    """Pixel coordinates (x, y) of a point with camera coordinates c (c.z > 0 in perspective);
+    one reciprocal of z serves both, as division costs several multiplications."""
     if proj.orthographic != 0:
-        return (c[0] + wp.float64(1.0)) * proj.half_width
-    return (c[0] / c[2] + wp.float64(1.0)) * proj.half_width
-
-
-@wp.func
-def screen_y(proj: Projection, c: wp.vec3d) -> wp.float64:
-    if proj.orthographic != 0:
-        return (wp.float64(1.0) - c[1]) * proj.half_height
-    return (wp.float64(1.0) - c[1] / c[2]) * proj.half_height
+        return wp.vec2d((c[0] + wp.float64(1.0)) * proj.half_width, (wp.float64(1.0) - c[1]) * proj.half_height)
+    inverse_z = wp.float64(1.0) / c[2]
+    return wp.vec2d((c[0] * inverse_z + wp.float64(1.0)) * proj.half_width,
+                    (wp.float64(1.0) - c[1] * inverse_z) * proj.half_height)
 
 
 @wp.func
@@ -264,16 +264,22 @@ def depth_weight(proj: Projection, z: wp.float64) -> wp.float64:
 
 
 @wp.func
+def snap_signed(x: wp.float64) -> int:
+    """A screen coordinate within the guard band in fixed point, rounded to nearest: shifted
+    positive so that truncation rounds down (cheaper than wp.round, a library call)."""
+    return int(wp.int64(x * SUBPIXEL_SCALE + SNAP_OFFSET) - SNAP_SHIFT)
+
+
+@wp.func
 def project_vertex(positions: wp.array(dtype=wp.vec3), proj: Projection, i: int, screen: wp.array(dtype=wp.vec2i),
                    depth_weights: wp.array(dtype=wp.float64)):
     c = camera_coordinates(proj, positions[i])
     if c[2] <= wp.float64(0.0):
         screen[i] = wp.vec2i(BEHIND_CAMERA, 0)
         return
-    x = screen_x(proj, c)
-    y = screen_y(proj, c)
-    if wp.abs(x) <= GUARD_BAND and wp.abs(y) <= GUARD_BAND:
-        screen[i] = wp.vec2i(int(wp.round(x * SUBPIXEL_SCALE)), int(wp.round(y * SUBPIXEL_SCALE)))
+    xy = screen_point(proj, c)
+    if wp.abs(xy[0]) <= GUARD_BAND and wp.abs(xy[1]) <= GUARD_BAND:
+        screen[i] = wp.vec2i(snap_signed(xy[0]), snap_signed(xy[1]))
         depth_weights[i] = depth_weight(proj, c[2])
     else:
         screen[i] = wp.vec2i(OUTSIDE_GUARD_BAND, 0)
@@ -368,7 +374,8 @@ def include_vertex_and_edge(bounds: wp.vec4d, proj: Projection, c: wp.vec3d, nex
     r = bounds
     zero = wp.float64(0.0)
     if c[2] > zero:
-        r = include_point(r, screen_x(proj, c), screen_y(proj, c))
+        xy = screen_point(proj, c)
+        r = include_point(r, xy[0], xy[1])
         if next_c[2] <= zero:
             r = include_clipped_edge(r, c, next_c)
     elif next_c[2] > zero:
@@ -436,10 +443,12 @@ def covers_edge_origin(xa: wp.int64, ya: wp.int64, xb: wp.int64, yb: wp.int64, f
 
 
 @wp.func
-def covers_pixel_centre(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, px: int, py: int) -> bool:
-    """Whether a projected triangle covers the centre of pixel (px, py), exactly as
-    rasterize_triangle decides it with spp = 1 (the same int64 edge functions, evaluated with the
-    sample moved to the origin)."""
+def pixel_centre_depth(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: wp.float64, w1: wp.float64, w2: wp.float64,
+                       px: int, py: int, orthographic: int):
+    """(covered, depth) of the centre of pixel (px, py) by a projected triangle, coverage exactly
+    as rasterize_triangle decides it with spp = 1 (the same int64 edge functions, evaluated with
+    the sample moved to the origin) and depth interpolated as it does; for triangles whose
+    rectangle is that one pixel, without rasterize_triangle's setup for a whole rectangle."""
     sx = wp.int64(px) * PIXEL + HALF_PIXEL
     sy = wp.int64(py) * PIXEL + HALF_PIXEL
     x0 = wp.int64(q0[0]) - sx
@@ -450,12 +459,16 @@ def covers_pixel_centre(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, px: int, py: i
     y2 = wp.int64(q2[1]) - sy
     area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
     if area == wp.int64(0):
-        return False
+        return False, 0.0
     flip = wp.int64(1)
     if area < wp.int64(0):
         flip = wp.int64(-1)
-    return (covers_edge_origin(x1, y1, x2, y2, flip) and covers_edge_origin(x2, y2, x0, y0, flip)
-            and covers_edge_origin(x0, y0, x1, y1, flip))
+    if not (covers_edge_origin(x1, y1, x2, y2, flip) and covers_edge_origin(x2, y2, x0, y0, flip)
+            and covers_edge_origin(x0, y0, x1, y1, flip)):
+        return False, 0.0
+    weights = (w0 * wp.float64((x1 * y2 - x2 * y1) * flip) + w1 * wp.float64((x2 * y0 - x0 * y2) * flip)
+               + w2 * wp.float64((x0 * y1 - x1 * y0) * flip))
+    return True, interpolated_depth(weights, wp.float64(area * flip), orthographic)
 
 
 @wp.func
@@ -714,9 +727,10 @@ def rasterize_homogeneous(face: int, c0: wp.vec3d, c1: wp.vec3d, c2: wp.vec3d, r
 
 # ---------------------------------------------------------------------- binning
 @wp.func
-def has_valid_indices(indices: wp.array(dtype=wp.int32), face: int, vertex_count: int) -> bool:
-    c = triangle_corners(indices, face)
-    return wp.min(c[0], wp.min(c[1], c[2])) >= 0 and wp.max(c[0], wp.max(c[1], c[2])) < vertex_count
+def are_valid_indices(c: wp.vec3i, vertex_count: int) -> bool:
+    """Whether 0 <= c[i] < vertex_count for each corner: one unsigned comparison each."""
+    n = wp.uint32(vertex_count)
+    return wp.uint32(c[0]) < n and wp.uint32(c[1]) < n and wp.uint32(c[2]) < n
 
 
 @wp.func
@@ -739,10 +753,10 @@ def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=w
                    binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
                    tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
                    out: wp.array2d(dtype=wp.uint64)):
-    if not has_valid_indices(indices, face, vertex_count):
+    c = triangle_corners(indices, face)
+    if not are_valid_indices(c, vertex_count):
         bad_indices[chunk] = 1
         return
-    c = triangle_corners(indices, face)
     q0 = screen[c[0]]
     q1 = screen[c[1]]
     q2 = screen[c[2]]
@@ -760,11 +774,14 @@ def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=w
                 return
         if rect_pixels(r) <= SMALL_TRIANGLE_PIXELS:
             # drawn now, with atomic minima, rather than binned and read again: most triangles of a
-            # dense mesh are this small. A one-pixel rectangle with one sample is tested first, so
-            # that those falling between pixel centres cost no more.
+            # dense mesh are this small, and a third of them (a million-triangle model at 1024²)
+            # span a single pixel
             if spp == 1 and rect_pixels(r) == 1:
-                if not covers_pixel_centre(q0, q1, q2, r[0], r[1]):
-                    return
+                covered, depth = pixel_centre_depth(q0, q1, q2, depth_weights[c[0]], depth_weights[c[1]],
+                                                    depth_weights[c[2]], r[0], r[1], proj.orthographic)
+                if covered:
+                    keep_nearest(out, r[1], r[0], visibility_entry(depth, face), True)
+                return
             rasterize_triangle(face, q0, q1, q2, depth_weights[c[0]], depth_weights[c[1]], depth_weights[c[2]], r,
                                samples, spp, proj.orthographic, out, True)
             return
