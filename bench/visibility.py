@@ -107,13 +107,15 @@ def bench_case(label, mesh, size, repeats, threads_all):
     splits = []
     for repeat in range(repeats + 1):  # the first round warms up
         for key, (threads, out, cull) in variants.items():
-            split = {}
             t0 = time.perf_counter()
-            raster(threads, out, split, cull)
+            raster(threads, out, None, cull)
             if repeat:
                 times[key].append(time.perf_counter() - t0)
-                if key == f"raster_ms_{threads_all}t":
-                    splits.append(split)
+        # the split in a call of its own, as timing the parts apart stops the launches between them
+        split = {}
+        raster(threads_all, buffer, split)
+        if repeat:
+            splits.append(split)
     for key, seconds in times.items():
         row[key] = 1e3 * statistics.median(seconds)
     row["binning_ms"] = 1e3 * statistics.median(t["binning"] for t in splits)
@@ -187,8 +189,9 @@ def markdown(rows, model, threads_all):
     lines += [
         "",
         "Samples are pixels (spp 1), all counted, hit or not. Raster: whole visibility_buffer call (binning = "
-        "buffer clear, vertex projection, small triangles drawn at once, the others' rectangles binned; "
-        "rasterization = the binned triangles, tile by tile), sample "
+        "buffer clear, vertex projection, small triangles drawn at once, the others' rectangles binned and the "
+        "bins laid out; rasterization = the bins filled and the binned triangles drawn, tile by tile; timed in "
+        "a call of their own that stops the launches between the two), sample "
         "positions cached, output buffer reused (out=) except in the new-buffer column, whose fresh pages "
         "page-fault; the four raster variants are timed in turn, round after round. Back faces culled: every "
         "triangle flagged in cull_back_faces, as pw.render flags single-sided meshes and closed ones seen from "

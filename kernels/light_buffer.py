@@ -26,7 +26,6 @@ stay in that cell from its origin's projection alone. A ray whose cells cannot b
 import warp as wp
 
 from .raster import (
-    ITEMS_PER_THREAD,
     Projection,
     camera_coordinates,
     clipped_rect,
@@ -39,6 +38,10 @@ from .robust import RAY_FAR
 from .shadow_map import CUBE_FACES, cube_face
 
 wp.set_module_options({"enable_backward": False})
+
+# Triangles per Warp thread in the per-triangle launches: a CPU launch calls the kernel once per
+# thread and copies its arguments each time, which cost more than one triangle's work.
+ITEMS_PER_THREAD = wp.constant(64)
 
 # Verdicts of a light-buffer query.
 LIT = wp.constant(0)

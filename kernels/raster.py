@@ -15,16 +15,17 @@ are rasterized homogeneously in float64 over a conservative screen rectangle
 step, which a shading kernel calls to recompute the hit of the triangle this buffer names.
 A parallel projection (Projection.orthographic) serves directional lights' shadow maps.
 
-pbrwarp/raster.py runs the stages: the buffer cleared and vertices projected; then per triangle
-its screen rectangle, small triangles drawn at once with atomic minima and larger ones binned
-into tiles; then the binned ones drawn, tiles taken from a queue shared by one launch per thread.
+visibility_pipeline runs the stages, launched once per thread, the launches meeting at barriers:
+the buffer cleared and vertices projected; then per triangle its screen rectangle, small
+triangles drawn at once with atomic minima and larger ones binned into tiles; then the binned
+ones drawn, tiles taken from a queue shared by the launches.
 """
 
 import warp as wp
 
 from .camera import CameraData, camera_ray_direction
 from .sampling import multi_jittered_sample
-from .work_queue import take_next_item
+from .work_queue import take_next_item_from
 
 wp.set_module_options({"enable_backward": False})
 
@@ -61,9 +62,6 @@ STEPPED_EDGE_ROUNDING = wp.constant(wp.float64(1.0e-15))
 # solve (three int64 divisions) pays off only where it skips many uncovered pixels, and in
 # development trials rows of 8 made dense meshes' small triangles slower.
 SPAN_MIN_WIDTH = wp.constant(16)
-# Vertices or triangles per Warp thread in projection and binning: a CPU launch calls the kernel
-# once per thread and copies its arguments each time, which cost more than one small triangle.
-ITEMS_PER_THREAD = wp.constant(64)
 
 # The x of a vertex's screen position when it is not projected: snapped coordinates lie within
 # +-2^29, so int32 holds them and these codes below them.
@@ -231,12 +229,6 @@ def snap(x: float) -> wp.int64:
     return wp.int64(wp.float64(x) * SUBPIXEL_SCALE + wp.float64(0.5))
 
 
-@wp.kernel
-def clear_rows(first_row: int, out: wp.array2d(dtype=wp.uint64)):
-    """Rows first_row... of ``out`` (one per thread) set to NO_TRIANGLE."""
-    clear_row_span(out, first_row + wp.tid(), 0, out.shape[1])
-
-
 # ---------------------------------------------------------------------- vertices
 @wp.func
 def camera_coordinates(proj: Projection, p: wp.vec3) -> wp.vec3d:
@@ -283,17 +275,6 @@ def project_vertex(positions: wp.array(dtype=wp.vec3), proj: Projection, i: int,
         depth_weights[i] = depth_weight(proj, c[2])
     else:
         screen[i] = wp.vec2i(OUTSIDE_GUARD_BAND, 0)
-
-
-@wp.kernel
-def project_vertices(positions: wp.array(dtype=wp.vec3), proj: Projection, first: int, end: int,
-                     screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64)):
-    """Snapped screen position (x, y) and 1/z of vertices [first, end), ITEMS_PER_THREAD per
-    thread, or x = BEHIND_CAMERA / OUTSIDE_GUARD_BAND. Positions and depths are apart so that
-    binning reads 8 bytes a vertex."""
-    start = first + wp.tid() * ITEMS_PER_THREAD
-    for i in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
-        project_vertex(positions, proj, i, screen, depth_weights)
 
 
 @wp.func
@@ -804,45 +785,10 @@ def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=w
             tile_counts[chunk, tile] = tile_counts[chunk, tile] + 1
 
 
-@wp.kernel
-def count_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
-                screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64), proj: Projection,
-                samples: wp.array2d(dtype=wp.vec2), spp: int, chunk_size: int, triangles: int, tiles_x: int,
-                cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
-                binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
-                tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
-                queue: wp.array(dtype=wp.int32), launches: int, stride: int, out: wp.array2d(dtype=wp.uint64)):
-    """Chunks of chunk_size triangles taken one at a time from ``queue``, shared by every launch
-    (launch ``stride`` times as many threads as launches, as any launch may take them all).
-    Ticket t names chunk (t mod launches) stride + t / launches, so that launches running side by
-    side draw chunks far apart in the mesh, and mostly in different places on screen, rather than
-    neighbours (whose small triangles would share the buffer's cache lines). Small triangles of a chunk
-    are drawn into ``out`` (cleared beforehand) at once; the others that may cover a sample
-    listed, with their screen rectangles, at binned_face and binned_rect [first, first +
-    binned_count[chunk]) (first = chunk chunk_size), and counted per tile they touch in row
-    ``chunk`` of tile_counts. bad_indices[chunk] is set to 1 if a triangle of the chunk has an
-    index out of range (checked here, on every thread, rather than by a serial pass before; such
-    triangles are not read). Projected triangles whose flag in ``cull_back_faces`` (empty: none)
-    is set are dropped when they face away. A chunk is taken by exactly one launch, so its parts
-    need no atomics, and launches that finish early take more: no thread waits for another
-    with a heavier share (say, the visible half of a mesh)."""
-    ticket = take_next_item(queue)
-    if ticket >= launches * stride:
-        return
-    chunk = (ticket % launches) * stride + ticket / launches
-    if chunk >= tile_counts.shape[0]:
-        return
-    first = chunk * chunk_size
-    for face in range(first, wp.min(first + chunk_size, triangles)):
-        count_triangle(positions, indices, vertex_count, screen, depth_weights, proj, samples, spp, face, chunk,
-                       tiles_x, cull_back_faces, first, binned_count, binned_face, binned_rect, tile_counts,
-                       bad_indices, out)
-
-
-@wp.kernel
+@wp.func
 def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dtype=wp.int32),
                 bin_start: wp.array(dtype=wp.int32), total: wp.array(dtype=wp.int64)):
-    """Launched on one thread: bins are contiguous per tile, each chunk's part after the previous
+    """Run by one thread: bins are contiguous per tile, each chunk's part after the previous
     chunks'. bin_start[tile] is where a tile's bin starts, cursors[chunk, tile] where a chunk's
     part of it does, total[0] the length of all bins (exact in int64; offsets are meaningful only
     if it is below 2^31)."""
@@ -868,36 +814,14 @@ def bin_triangle(binned_rect: wp.array(dtype=wp.vec4i), slot: int, chunk: int, t
             cursors[chunk, tile] = at + 1
 
 
-@wp.kernel
-def fill_bins(binned_rect: wp.array(dtype=wp.vec4i), binned_count: wp.array(dtype=wp.int32), chunk_size: int,
-              tiles_x: int, cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32),
-              queue: wp.array(dtype=wp.int32)):
-    """Chunks taken from ``queue`` as in count_tiles: the slot of each listed triangle of a chunk
-    appended to the bin of every tile its rectangle touches, at the chunk's cursor in that bin."""
-    chunk = take_next_item(queue)
-    if chunk >= binned_count.shape[0]:
-        return
-    first = chunk * chunk_size
-    for slot in range(first, first + binned_count[chunk]):
-        bin_triangle(binned_rect, slot, chunk, tiles_x, cursors, bins)
-
-
-@wp.kernel
-def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
-                    screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64),
-                    binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
-                    bin_start: wp.array(dtype=wp.int32), bins: wp.array(dtype=wp.int32),
-                    samples: wp.array2d(dtype=wp.vec2), spp: int, cam: CameraData, proj: Projection,
-                    tiles_x: int, tile_stride: int, queue: wp.array(dtype=wp.int32), out: wp.array2d(dtype=wp.uint64)):
-    """Tiles taken one at a time from ``queue``, shared by every launch: draw every triangle of
-    its bin into it. The k-th taken is tile k tile_stride modulo the tile count (tile_stride
-    coprime with it). A tile is taken by exactly one launch, so its samples need no atomics;
-    launch with one thread per tile, as any launch may take them all."""
-    k = take_next_item(queue)
-    tiles = bin_start.shape[0] - 1
-    if k >= tiles:
-        return
-    tile = int((wp.int64(k) * wp.int64(tile_stride)) % wp.int64(tiles))
+@wp.func
+def rasterize_tile(tile: int, positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
+                   screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64),
+                   binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
+                   bin_start: wp.array(dtype=wp.int32), bins: wp.array(dtype=wp.int32),
+                   samples: wp.array2d(dtype=wp.vec2), spp: int, cam: CameraData, proj: Projection,
+                   tiles_x: int, out: wp.array2d(dtype=wp.uint64)):
+    """Every triangle of a tile's bin drawn into it, by the one thread that owns it (no atomics)."""
     tile_x0 = (tile % tiles_x) * TILE_SIZE
     tile_y0 = (tile / tiles_x) * TILE_SIZE
     tile_x1 = wp.min(tile_x0 + TILE_SIZE, proj.width) - 1
@@ -924,3 +848,140 @@ def rasterize_tiles(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=
             if not rasterize_homogeneous(face, camera_coordinates(proj, p0), camera_coordinates(proj, p1),
                                          camera_coordinates(proj, p2), rect, samples, spp, proj, out):
                 trace_triangle(face, p0, p1, p2, rect, samples, spp, cam, proj, out)
+
+
+
+
+# ---------------------------------------------------------------------- the pipeline
+# Slots of the int32 ``sync`` array shared by a call's launches: the work queues of binning,
+# filling and tiles; one arrival counter per barrier; the abort flag (set from Python when a
+# launch fails to start, lest the others wait for it forever); the outcome of binning.
+QUEUE_CHUNKS = wp.constant(0)
+QUEUE_FILL = wp.constant(1)
+QUEUE_TILES = wp.constant(2)
+BARRIER_PROJECTED = wp.constant(3)
+BARRIER_COUNTED = wp.constant(4)
+BARRIER_OFFSETS = wp.constant(5)
+BARRIER_FILLED = wp.constant(6)
+ABORTED = wp.constant(7)
+OUTCOME = wp.constant(8)
+SYNC_SLOTS = 9
+# Outcomes of binning: drawn (or drawing), an index out of range (nothing read through it), or
+# more triangle-tile pairs than the bins hold (in ``bin_total``; grow them and resume at FILL).
+BINNED = wp.constant(0)
+BAD_INDEX = wp.constant(1)
+BINS_TOO_SMALL = wp.constant(2)
+# Stages a launch may start at.
+START = wp.constant(0)
+FILL = wp.constant(1)
+
+
+@wp.func_native("""
+    __atomic_add_fetch(sync.data + slot, 1, __ATOMIC_ACQ_REL);
+    while (__atomic_load_n(sync.data + slot, __ATOMIC_ACQUIRE) < launches) {
+        if (__atomic_load_n(sync.data + aborted, __ATOMIC_ACQUIRE) != 0) return false;
+        __builtin_ia32_pause();
+    }
+    return true;
+    """)
+def all_arrived(sync: wp.array(dtype=wp.int32), slot: int, launches: int, aborted: int) -> bool:
+    """A barrier of the call's launches, which run side by side on a thread pool: arrives at
+    counter ``slot`` and spins until all ``launches`` have (what each wrote before is then
+    visible to all); False if the call was aborted meanwhile. Spinning rather than returning to
+    Python between stages: a Python barrier's wake-ups, and the GIL passed back and forth for each
+    stage's launch, cost ~1.5 ms of a call on two threads (development measurement, nothing to
+    draw at 512²: 2.6-3.6 ms on two threads against 1.1-2.5 on one)."""
+    ...
+
+
+@wp.func
+def share(n: int, parts: int, minimum: int) -> int:
+    """The size of each of ``parts`` contiguous shares of n items, at least ``minimum``."""
+    return wp.max(minimum, (n + parts - 1) / parts)
+
+
+@wp.kernel
+def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after_binning: int,
+                        positions: wp.array(dtype=wp.vec3),
+                        indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
+                        depth_weights: wp.array(dtype=wp.float64), cam: CameraData, proj: Projection,
+                        samples: wp.array2d(dtype=wp.vec2), spp: int, min_vertex_share: int, chunk_size: int,
+                        chunk_stride: int, triangles: int, tiles_x: int, tile_stride: int,
+                        cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
+                        binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
+                        tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
+                        cursors: wp.array2d(dtype=wp.int32), bin_start: wp.array(dtype=wp.int32),
+                        bin_total: wp.array(dtype=wp.int64), bins: wp.array(dtype=wp.int32),
+                        sync: wp.array(dtype=wp.int32), out: wp.array2d(dtype=wp.uint64)):
+    """The whole visibility buffer: launched with one index on each of ``launches`` threads
+    (``launch`` = 0, 1, ...) side by side, which meet at spinning barriers (all_arrived) between
+    stages.
+
+    From START: this launch's share of the buffer's rows cleared and of the vertices projected;
+    then chunks of chunk_size triangles taken from a queue shared by every launch, ticket t
+    naming chunk (t mod launches) chunk_stride + t / launches, so that launches running side by
+    side draw chunks far apart in the mesh (and mostly apart on screen) rather than neighbours:
+    small triangles drawn into the buffer at once (atomically, as another launch may draw the same
+    sample), the others that may cover a sample listed with their screen rectangles at
+    binned_face and binned_rect [chunk chunk_size, + binned_count[chunk]) and counted per tile
+    they touch in row ``chunk`` of tile_counts (a chunk is one launch's: no atomics), or the
+    chunk's bad_indices set for a triangle with an index out of range (it is not read). Launch 0
+    then lays out the bins (bin_offsets) and records the OUTCOME in ``sync``; all stop unless it
+    is BINNED (or if stop_after_binning, to time the parts apart). From FILL: each listed triangle's slot appended to the bin of every tile its
+    rectangle touches, chunk by chunk from another queue; then tiles taken from a third queue,
+    the k-th taken tile k tile_stride modulo the tile count, each drawn by the launch that took it
+    alone (rasterize_tile). Every queue hands out work to whichever launch asks first, so one
+    with cheaper work (culled back faces, triangles off screen) takes more. ``sync`` must be
+    zeroed before a call (and its FILL barrier, queues and outcome before resuming there).
+    """
+    if first_stage == START:
+        rows = share(proj.height, launches, 1)
+        for row in range(launch * rows, wp.min((launch + 1) * rows, proj.height)):
+            clear_row_span(out, row, 0, out.shape[1])
+        vertices = share(vertex_count, launches, min_vertex_share)
+        for i in range(launch * vertices, wp.min((launch + 1) * vertices, vertex_count)):
+            project_vertex(positions, proj, i, screen, depth_weights)
+        # small triangles are drawn into the cleared buffer from projected vertices
+        if not all_arrived(sync, BARRIER_PROJECTED, launches, ABORTED):
+            return
+        ticket = take_next_item_from(sync, QUEUE_CHUNKS)
+        while ticket < launches * chunk_stride:
+            chunk = (ticket % launches) * chunk_stride + ticket / launches
+            if chunk < tile_counts.shape[0]:
+                first = chunk * chunk_size
+                for face in range(first, wp.min(first + chunk_size, triangles)):
+                    count_triangle(positions, indices, vertex_count, screen, depth_weights, proj, samples, spp, face,
+                                   chunk, tiles_x, cull_back_faces, first, binned_count, binned_face, binned_rect,
+                                   tile_counts, bad_indices, out)
+            ticket = take_next_item_from(sync, QUEUE_CHUNKS)
+        if not all_arrived(sync, BARRIER_COUNTED, launches, ABORTED):
+            return
+        if launch == 0:
+            outcome = BINNED
+            for chunk in range(bad_indices.shape[0]):
+                if bad_indices[chunk] != 0:
+                    outcome = BAD_INDEX
+            if outcome == BINNED:
+                bin_offsets(tile_counts, cursors, bin_start, bin_total)
+                if bin_total[0] > wp.int64(bins.shape[0]):
+                    outcome = BINS_TOO_SMALL
+            sync[OUTCOME] = outcome
+        if not all_arrived(sync, BARRIER_OFFSETS, launches, ABORTED):
+            return
+        if sync[OUTCOME] != BINNED or stop_after_binning != 0:
+            return
+    chunk = take_next_item_from(sync, QUEUE_FILL)
+    while chunk < binned_count.shape[0]:
+        first = chunk * chunk_size
+        for slot in range(first, first + binned_count[chunk]):
+            bin_triangle(binned_rect, slot, chunk, tiles_x, cursors, bins)
+        chunk = take_next_item_from(sync, QUEUE_FILL)
+    if not all_arrived(sync, BARRIER_FILLED, launches, ABORTED):
+        return
+    tiles = bin_start.shape[0] - 1
+    k = take_next_item_from(sync, QUEUE_TILES)
+    while k < tiles:
+        tile = int((wp.int64(k) * wp.int64(tile_stride)) % wp.int64(tiles))
+        rasterize_tile(tile, positions, indices, screen, depth_weights, binned_face, binned_rect, bin_start, bins,
+                       samples, spp, cam, proj, tiles_x, out)
+        k = take_next_item_from(sync, QUEUE_TILES)

@@ -10,7 +10,13 @@ more instead of idling while another works through a heavier share.
 import warp as wp
 
 
-@wp.func_native("return __atomic_fetch_add(counter.data, 1, __ATOMIC_RELAXED);")
-def take_next_item(counter: wp.array(dtype=wp.int32)) -> int:
-    """The counter's value before incrementing it by one, atomically across threads."""
+@wp.func_native("return __atomic_fetch_add(counters.data + slot, 1, __ATOMIC_RELAXED);")
+def take_next_item_from(counters: wp.array(dtype=wp.int32), slot: int) -> int:
+    """counters[slot] before incrementing it by one, atomically across threads."""
     ...
+
+
+@wp.func
+def take_next_item(counter: wp.array(dtype=wp.int32)) -> int:
+    """The counter's (counter[0]'s) value before incrementing it by one, atomically across threads."""
+    return take_next_item_from(counter, 0)

@@ -15,7 +15,7 @@ import warp as wp
 
 from .errors import InputError
 from .parallel import run_all, thread_count
-from .raster import launch_threads, projection
+from .raster import projection
 from .shadow_maps import light_views, light_geometry
 from pbrwarp.kernels import light_buffer as lb
 from pbrwarp.kernels.loading import load_for_cpu
@@ -33,6 +33,11 @@ MAX_ENTRIES_PER_CELL = 8
 WORK_BLOCKS_PER_THREAD = 4
 # Fraction taken off the float32 distance from a light to the nearest surface.
 CLEARANCE_MARGIN = 1.0e-3
+
+
+def launch_threads(items: int) -> int:
+    """Launch dimension for ``items`` handled lb.ITEMS_PER_THREAD per Warp thread."""
+    return -(-items // int(lb.ITEMS_PER_THREAD))
 
 
 def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:

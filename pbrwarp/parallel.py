@@ -43,50 +43,25 @@ def thread_count(threads) -> int:
 
 
 
-_stages_turn = threading.Lock()
+_together_turn = threading.Lock()
 
 
-def run_stages(stages, threads: int):
-    """Run ``stages`` in order, each on ``threads`` threads, the calling thread and threads - 1
-    pool threads, with one pool round trip in all. A stage is (work, then): work(k) runs on
-    thread k = 0..threads-1; once every thread has finished it, then() (if not None) runs on one
-    of them before any starts the next stage. Between stages the threads meet at a barrier rather
-    than returning to the caller, which would wake it and then the pool again: for launches of a
-    millisecond those wake-ups took a tenth of the time. Concurrent calls take turns, lest their
-    pool threads wait at barriers for threads queued behind each other (a stage must not call
-    this itself). The first exception raised is re-raised here."""
+def run_together(fn, threads: int):
+    """fn(k) for k = 0..threads-1 all at once: k = 0 on the calling thread (which is awake
+    already), the others on threads - 1 pool threads, for launches that wait for each other
+    (see kernels/raster.py's all_arrived), so none may queue behind another. Concurrent calls take
+    turns, lest one call's launches hold the pool while the others' wait for theirs. fn must see to
+    it that an error before its launch releases the others (the raster sets an abort flag). The
+    first exception raised is re-raised here, once every thread is done."""
     if threads == 1:
-        for work, then in stages:
-            work(0)
-            if then is not None:
-                then()
+        fn(0)
         return
-    thens = iter([then for _, then in stages])
-
-    def after_stage():
-        then = next(thens)
-        if then is not None:
-            then()
-
-    barrier = threading.Barrier(threads, action=after_stage)
-
-    def worker(k):
-        for work, _ in stages:
-            try:
-                work(k)
-            except BaseException:
-                barrier.abort()  # wake the others rather than leave them waiting
-                raise
-            barrier.wait()
-
     errors = []
-    with _stages_turn:
-        helpers = [thread_pool(threads - 1).submit(worker, k) for k in range(1, threads)]
-        for outcome in [lambda: worker(0)] + [helper.result for helper in helpers]:
+    with _together_turn:
+        helpers = [thread_pool(threads - 1).submit(fn, k) for k in range(1, threads)]
+        for outcome in [lambda: fn(0)] + [helper.result for helper in helpers]:
             try:
                 outcome()
-            except threading.BrokenBarrierError:
-                pass  # broken by another thread's error
             except BaseException as error:  # noqa: BLE001 - re-raised below, once every thread is done
                 errors.append(error)
     if errors:

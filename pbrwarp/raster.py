@@ -1,14 +1,15 @@
 """Primary visibility by rasterization (kernels/raster.py), on every core.
 
-:func:`visibility_buffer` gives, per sample, the nearest triangle and its depth. Stages: sample
-positions (camera independent, cached); the buffer cleared and vertices projected; triangles'
-screen rectangles, small triangles drawn into the buffer at once (atomic minima, as two threads
-may write one sample) and larger ones binned into TILE_SIZE tiles; then one launch per thread
-from a thread pool (Warp CPU launches run on one thread and release the GIL), each taking tiles
-from a shared queue, a tile drawn by one launch only. Vertices are split into one range per
-thread; triangles into a few chunks per thread, also taken from a queue. A sample keeps the minimum of its entries whatever the order
-they come in, so the buffer does not depend on the thread count.
-"""
+:func:`visibility_buffer` gives, per sample, the nearest triangle and its depth. Sample
+positions are camera independent and cached. The rest is one launch of
+kernels/raster.py's visibility_pipeline per thread, the calling thread and pool threads side by
+side (Warp CPU launches run on one thread and release the GIL), meeting at barriers that spin in
+the kernel rather than return to Python: the buffer cleared and vertices projected (a share
+each); triangles' screen rectangles, small triangles drawn into the buffer at once (atomic
+minima, as two threads may write one sample) and larger ones binned into TILE_SIZE tiles, a few
+chunks of triangles per thread taken from a shared queue; the bins laid out and filled; then
+tiles taken from another queue, a tile drawn by one launch only. A sample keeps the minimum of
+its entries whatever the order they come in, so the buffer does not depend on the thread count."""
 
 from __future__ import annotations
 
@@ -21,14 +22,13 @@ import warp as wp
 
 from . import huge_pages
 from .errors import InputError, InputTypeError
-from .parallel import run_all, run_stages, thread_count
+from .parallel import run_all, run_together, thread_count
 from pbrwarp.kernels import raster as rk
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
 
 NO_TRIANGLE = 0xFFFFFFFFFFFFFFFF
 TILE_SIZE = int(rk.TILE_SIZE)
-ITEMS_PER_THREAD = int(rk.ITEMS_PER_THREAD)
 MAX_IMAGE_SIZE = rk.MAX_IMAGE_SIZE
 # Fewest vertices or triangles worth a launch of their own: below this, a launch costs more
 # than the work it would share (with the stages meeting at barriers, 4096 bins a 15k-triangle
@@ -69,8 +69,7 @@ RASTER_SECONDS_PER_TRIANGLE = 13.8e-9
 RASTER_SECONDS_PER_SAMPLE = 3.78e-9
 RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 4.52e-9
 
-KERNELS = (rk.sample_positions, rk.clear_rows, rk.project_vertices, rk.count_tiles, rk.bin_offsets, rk.fill_bins,
-           rk.rasterize_tiles)
+KERNELS = (rk.sample_positions, rk.visibility_pipeline)
 
 
 def _chunks(n: int, parts: int, minimum: int = MIN_CHUNK):
@@ -81,7 +80,7 @@ def _chunks(n: int, parts: int, minimum: int = MIN_CHUNK):
 
 
 def _tile_stride(tiles: int) -> int:
-    """The step between tiles taken one after the other (rasterize_tiles): about half the tile
+    """The step between tiles taken one after the other (visibility_pipeline): about half the tile
     count, coprime with it, so that threads taking tiles at the same time draw far-apart ones.
     Neighbouring tiles' rows share pages, and the cores' prefetchers, fetching each other's lines,
     slowed two threads drawing neighbours (interleaved development A/B, bench/frames.py's icosphere
@@ -90,11 +89,6 @@ def _tile_stride(tiles: int) -> int:
     while math.gcd(stride, tiles) != 1:
         stride += 1
     return stride % max(tiles, 1) or 1
-
-
-def launch_threads(items: int) -> int:
-    """Launch dimension for ``items`` handled ITEMS_PER_THREAD per Warp thread."""
-    return -(-items // ITEMS_PER_THREAD)
 
 
 def _load_kernels():
@@ -172,8 +166,8 @@ def _check_sampling(width, height, spp, grid_m, grid_n, seed):
 
 
 def _check_geometry(positions, indices) -> tuple[int, int]:
-    """(vertex count, triangle count). Index values are checked by count_tiles, before any is used
-    to read (one out of range would crash Warp)."""
+    """(vertex count, triangle count). Index values are checked by visibility_pipeline, before
+    any is used to read (one out of range would crash Warp)."""
     if not isinstance(positions, wp.array) or positions.dtype != wp.vec3 or positions.ndim != 1:
         raise InputTypeError("positions must be a 1-D wp.array of wp.vec3")
     if not isinstance(indices, wp.array) or indices.dtype != wp.int32 or indices.ndim != 1:
@@ -203,7 +197,9 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     buffer does not depend on it. ``out``, a buffer of that shape and dtype on the CPU, is filled
     and returned instead of a new one: reusing it saves the page faults of fresh memory, which
     take a third of a 2048² frame and do not scale across threads. ``timings``, if a dict,
-    receives seconds per stage ("samples", "binning", "raster").
+    receives seconds per part: "samples" (positions, cached), "binning" (clearing, projection,
+    small triangles drawn, the others binned and the bins laid out), "raster" (bins filled,
+    tiles drawn); the launches then stop between the two, which costs a little.
 
     ``orthographic`` draws the parallel projection along cam.forward instead (see
     :func:`projection`), depth then the distance in front of the plane through cam.eye; only
@@ -232,75 +228,62 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
 
     tiles_x = math.ceil(width / TILE_SIZE)
     tiles = tiles_x * math.ceil(height / TILE_SIZE)
-    vertex_chunks = _chunks(vertices, threads)
     # chunks of triangles taken from a queue, several per thread so that none waits for another
     chunk_size = max(MIN_CHUNK, math.ceil(triangles / (threads * CHUNKS_PER_THREAD)))
     chunk_count = max(math.ceil(triangles / chunk_size), 1)
-    chunk_stride = math.ceil(chunk_count / threads)
-    scratch = _scratch.arrays  # the calling thread's, also when a pool thread allocates the bins
+    scratch = _scratch.arrays  # the calling thread's
     screen = _scratch_array(scratch, "screen", vertices, wp.vec2i)
     depth_weights = _scratch_array(scratch, "depth_weights", vertices, wp.float64)
     binned_face = _scratch_array(scratch, "binned_face", triangles, wp.int32)
     binned_rect = _scratch_array(scratch, "binned_rect", triangles, wp.vec4i)
+    # as long as the longest bins so far (a third pass grows them when a frame needs more)
+    bins = scratch.get("bins")
+    if bins is None:
+        bins = scratch["bins"] = wp.empty(max(triangles, tiles), dtype=wp.int32, device="cpu")
     binned_count = wp.zeros(chunk_count, dtype=wp.int32, device="cpu")
     tile_counts = wp.zeros((chunk_count, tiles), dtype=wp.int32, device="cpu")
     bad_indices = wp.zeros(chunk_count, dtype=wp.int32, device="cpu")
     cursors = wp.empty(tile_counts.shape, dtype=wp.int32, device="cpu")
     bin_start = wp.empty(tiles + 1, dtype=wp.int32, device="cpu")
-    bin_total = wp.empty(1, dtype=wp.int64, device="cpu")
-    # counters of the chunk queues of binning and filling and of the tile queue
-    queues = wp.zeros(3, dtype=wp.int32, device="cpu")
+    bin_total = wp.zeros(1, dtype=wp.int64, device="cpu")
+    sync = wp.zeros(rk.SYNC_SLOTS, dtype=wp.int32, device="cpu")
     if out is None:
         out = huge_pages.empty((height, width * spp), wp.uint64)
-    binned = {}
 
-    row_chunks = _chunks(height, threads, minimum=1)
+    def run(first_stage, stop_after_binning):
+        def launch(k):
+            try:
+                wp.launch(rk.visibility_pipeline, dim=1, device="cpu",
+                          inputs=[k, threads, first_stage, int(stop_after_binning), positions, indices, vertices, screen, depth_weights, cam,
+                                  proj, samples, spp, MIN_CHUNK, chunk_size, math.ceil(chunk_count / threads),
+                                  triangles, tiles_x, _tile_stride(tiles), cull_back_faces, binned_count, binned_face,
+                                  binned_rect, tile_counts, bad_indices, cursors, bin_start, bin_total, bins, sync,
+                                  out])
+            except BaseException:
+                sync.numpy()[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one
+                raise
 
-    def project(k):
-        # the buffer is cleared first: small triangles are drawn into it while binning
-        if k < len(row_chunks):
-            _, first_row, rows = row_chunks[k]
-            wp.launch(rk.clear_rows, dim=rows, device="cpu", inputs=[first_row, out])
-        if k < len(vertex_chunks):
-            _, first, count = vertex_chunks[k]
-            wp.launch(rk.project_vertices, dim=launch_threads(count), device="cpu",
-                      inputs=[positions, proj, first, first + count, screen, depth_weights])
+        run_together(launch, threads)
 
-    def count_tiles(k):
-        wp.launch(rk.count_tiles, dim=threads * chunk_stride, device="cpu",
-                  inputs=[positions, indices, vertices, screen, depth_weights, proj, samples, spp, chunk_size, triangles,
-                          tiles_x, cull_back_faces, binned_count, binned_face, binned_rect, tile_counts, bad_indices,
-                          queues[0:1], threads, chunk_stride, out])
-
-    def allocate_bins():
-        if bad_indices.numpy().any():
-            idx = indices.numpy()
-            raise InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], "
-                             f"{vertices} vertices")
-        wp.launch(rk.bin_offsets, dim=1, device="cpu", inputs=[tile_counts, cursors, bin_start, bin_total])
+    split = timings is not None
+    run(int(rk.START), split)
+    outcome = int(sync.numpy()[int(rk.OUTCOME)])
+    if outcome == int(rk.BAD_INDEX):
+        idx = indices.numpy()
+        raise InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], "
+                         f"{vertices} vertices")
+    t_binned = time.perf_counter()
+    if outcome == int(rk.BINS_TOO_SMALL):
         total = int(bin_total.numpy()[0])
         if total >= 2**31:
             raise InputError(f"too many triangle-tile pairs ({total}) for int32 bins")
-        binned["bins"] = _scratch_array(scratch, "bins", total, wp.int32)
-
-    def fill_bins(k):
-        wp.launch(rk.fill_bins, dim=chunk_count, device="cpu",
-                  inputs=[binned_rect, binned_count, chunk_size, tiles_x, cursors, binned["bins"], queues[1:2]])
-
-    def binning_done():
-        binned["clock"] = time.perf_counter()
-
-    def rasterize(k):
-        # every thread takes tiles from the shared queue until none are left
-        wp.launch(rk.rasterize_tiles, dim=tiles, device="cpu",
-                  inputs=[positions, indices, screen, depth_weights, binned_face, binned_rect, bin_start, binned["bins"],
-                          samples, spp, cam, proj, tiles_x, _tile_stride(tiles), queues[2:3], out])
-
-    run_stages([(project, None), (count_tiles, allocate_bins), (fill_bins, binning_done), (rasterize, None)], threads)
+        bins = scratch["bins"] = wp.empty(total, dtype=wp.int32, device="cpu")
+    if split or outcome == int(rk.BINS_TOO_SMALL):
+        run(int(rk.FILL), False)
     if timings is not None:
         timings["samples"] = t_samples - clock
-        timings["binning"] = binned["clock"] - t_samples
-        timings["raster"] = time.perf_counter() - binned["clock"]
+        timings["binning"] = t_binned - t_samples
+        timings["raster"] = time.perf_counter() - t_binned
     return out
 
 

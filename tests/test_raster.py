@@ -495,6 +495,51 @@ def test_thread_count_does_not_change_the_buffer(spp):
             np.testing.assert_array_equal(buffers[0], other)
 
 
+def test_bins_too_short_for_a_frame_are_grown_and_the_frame_drawn_whole():
+    """Large triangles touch many tiles: the bins kept from earlier calls (a thread's scratch) may
+    be too short, and the call then resumes at filling them, drawing the very buffer it draws with
+    long enough bins, the split into binning and raster (timings) changing nothing either."""
+    import pbrwarp.raster as raster_module
+
+    quad = [(1.5, 2.5), (190.5, 4.5), (180.5, 188.5), (3.5, 170.5)]
+    geom = mesh_geometry([pixel_to_plane(x, y, 192, 192) for x, y in quad], [[0, 1, 2], [0, 2, 3]])
+    cam = head_on(192, 192)
+    for threads in (1, 2):
+        raster_module._scratch.arrays.pop("bins", None)
+        first = visibility_buffer(geom.positions, geom.indices, cam, threads=threads).numpy()
+        # first made as long as max(triangles, tiles) = 36, grown for the triangle-tile pairs
+        assert len(raster_module._scratch.arrays["bins"]) > 6 * 6
+        timings = {}
+        again = visibility_buffer(geom.positions, geom.indices, cam, threads=threads, timings=timings).numpy()
+        np.testing.assert_array_equal(first, again)
+        assert set(timings) == {"samples", "binning", "raster"} and min(timings.values()) >= 0.0
+    ids, _ = decode(first)
+    inside = strictly_inside_convex(sample_positions(192, 192).numpy(), quad)
+    assert (ids[inside] >= 0).all() and (ids[~inside] < 0).mean() > 0.99 and inside.sum() > 30000
+
+
+def test_a_launch_failing_to_start_releases_the_others(monkeypatch):
+    """The launches of a call wait for each other at barriers in the kernel: one that fails
+    before it starts sets the abort flag, and the others return instead of waiting forever."""
+    import pbrwarp.raster as raster_module
+
+    geom = Geometry(scene_of(icosphere(3)))
+    cam = camera_data(pw.Camera.look_at((0.0, 0.0, 3.0), (0.0, 0.0, 0.0)), 64, 48)
+    launch = wp.launch
+
+    def failing_second_launch(kernel, dim, inputs, **kwargs):
+        if inputs[0] == 1:
+            raise RuntimeError("launch 1 failed")
+        return launch(kernel, dim=dim, inputs=inputs, **kwargs)
+
+    monkeypatch.setattr(raster_module.wp, "launch", failing_second_launch)
+    with pytest.raises(RuntimeError, match="launch 1 failed"):
+        visibility_buffer(geom.positions, geom.indices, cam, threads=2)
+    monkeypatch.undo()
+    ids, _ = decode(visibility_buffer(geom.positions, geom.indices, cam, threads=2))
+    assert (ids >= 0).any()
+
+
 def test_back_face_culling_drops_exactly_the_faces_turned_away():
     corners = [pixel_to_plane(10, 10), pixel_to_plane(20, 50), pixel_to_plane(50, 12)]
     geom = mesh_geometry(corners, [[0, 1, 2]])
