@@ -65,9 +65,9 @@ def _scratch_array(arrays: dict, kind: str, length: int, dtype) -> wp.array:
 # cores by bench/visibility.py (bench/results/visibility.md, least squares weighted by 1/time):
 # raster seconds ~ RASTER_SECONDS_PER_TRIANGLE * triangles + RASTER_SECONDS_PER_SAMPLE * samples,
 # ray cast seconds ~ RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE * samples * log2(triangles).
-RASTER_SECONDS_PER_TRIANGLE = 13.8e-9
-RASTER_SECONDS_PER_SAMPLE = 3.78e-9
-RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 4.52e-9
+RASTER_SECONDS_PER_TRIANGLE = 23.3e-9
+RASTER_SECONDS_PER_SAMPLE = 6.94e-9
+RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 7.63e-9
 
 KERNELS = (rk.sample_positions, rk.visibility_pipeline)
 
@@ -193,8 +193,8 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     they face away from the eye; degenerate triangles cover nothing; triangles behind the camera
     are dropped and those crossing the camera plane or leaving the guard band are rasterized
     homogeneously (in float64, from their camera-space vertices; by casting each sample's ray when
-    the eye lies in their plane). ``threads`` defaults to every core; the
-    buffer does not depend on it. ``out``, a buffer of that shape and dtype on the CPU, is filled
+    the eye lies in their plane). ``threads`` defaults to every core; the buffer does not depend on
+    it, and more threads than cores slow the call (its launches spin while they wait for each other). ``out``, a buffer of that shape and dtype on the CPU, is filled
     and returned instead of a new one: reusing it saves the page faults of fresh memory, which
     take a third of a 2048² frame and do not scale across threads. ``timings``, if a dict,
     receives seconds per part: "samples" (positions, cached), "binning" (clearing, projection,
