@@ -871,6 +871,8 @@ SYNC_SLOTS = 9
 BINNED = wp.constant(0)
 BAD_INDEX = wp.constant(1)
 BINS_TOO_SMALL = wp.constant(2)
+# Spins (pause instructions) of a waiting launch between yields of its core (see all_arrived).
+SPINS_BEFORE_YIELD = wp.constant(1024)
 # Stages a launch may start at.
 START = wp.constant(0)
 FILL = wp.constant(1)
@@ -878,17 +880,29 @@ FILL = wp.constant(1)
 
 @wp.func_native("""
     __atomic_add_fetch(sync.data + slot, 1, __ATOMIC_ACQ_REL);
+    int spins = 0;
     while (__atomic_load_n(sync.data + slot, __ATOMIC_ACQUIRE) < launches) {
         if (__atomic_load_n(sync.data + aborted, __ATOMIC_ACQUIRE) != 0) return false;
+#if defined(__x86_64__) || defined(__i386__)
         __builtin_ia32_pause();
+#elif defined(__aarch64__) || defined(__arm__)
+        __builtin_arm_yield();
+#endif
+        if (++spins < spins_before_yield || os_yield == 0) continue;
+        spins = 0;
+        ((wp::int32 (*)(void))os_yield)();
     }
     return true;
     """)
-def all_arrived(sync: wp.array(dtype=wp.int32), slot: int, launches: int, aborted: int) -> bool:
+def all_arrived(sync: wp.array(dtype=wp.int32), slot: int, launches: int, aborted: int,
+                spins_before_yield: int, os_yield: wp.uint64) -> bool:
     """A barrier of the call's launches, which run side by side on a thread pool: arrives at
     counter ``slot`` and spins until all ``launches`` have (what each wrote before is then
-    visible to all); False if the call was aborted meanwhile. Spinning rather than returning to
-    Python between stages: a Python barrier's wake-ups, and the GIL passed back and forth for each
+    visible to all); False if the call was aborted meanwhile. After every spins_before_yield
+    spins (tens of microseconds) it calls ``os_yield`` (the address of the C library's
+    sched_yield; 0: never), lest a launch waiting for another that is not running (more threads
+    than cores, or cores taken by other processes) hold the core that one needs. Spinning rather than returning to Python
+    between stages: a Python barrier's wake-ups, and the GIL passed back and forth for each
     stage's launch, cost ~1.5 ms of a call on two threads (development measurement, nothing to
     draw at 512²: 2.6-3.6 ms on two threads against 1.1-2.5 on one)."""
     ...
@@ -901,7 +915,7 @@ def share(n: int, parts: int, minimum: int) -> int:
 
 
 @wp.kernel
-def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after_binning: int,
+def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after_binning: int, os_yield: wp.uint64,
                         positions: wp.array(dtype=wp.vec3),
                         indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
                         depth_weights: wp.array(dtype=wp.float64), cam: CameraData, proj: Projection,
@@ -932,7 +946,8 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     the k-th taken tile k tile_stride modulo the tile count, each drawn by the launch that took it
     alone (rasterize_tile). Every queue hands out work to whichever launch asks first, so one
     with cheaper work (culled back faces, triangles off screen) takes more. ``sync`` must be
-    zeroed before a call (and its FILL barrier, queues and outcome before resuming there).
+    zeroed before a call (and its FILL barrier, queues and outcome before resuming there);
+    ``os_yield`` is all_arrived's.
     """
     if first_stage == START:
         rows = share(proj.height, launches, 1)
@@ -942,7 +957,7 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
         for i in range(launch * vertices, wp.min((launch + 1) * vertices, vertex_count)):
             project_vertex(positions, proj, i, screen, depth_weights)
         # small triangles are drawn into the cleared buffer from projected vertices
-        if not all_arrived(sync, BARRIER_PROJECTED, launches, ABORTED):
+        if not all_arrived(sync, BARRIER_PROJECTED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
             return
         ticket = take_next_item_from(sync, QUEUE_CHUNKS)
         while ticket < launches * chunk_stride:
@@ -954,7 +969,7 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                                    chunk, tiles_x, cull_back_faces, first, binned_count, binned_face, binned_rect,
                                    tile_counts, bad_indices, out)
             ticket = take_next_item_from(sync, QUEUE_CHUNKS)
-        if not all_arrived(sync, BARRIER_COUNTED, launches, ABORTED):
+        if not all_arrived(sync, BARRIER_COUNTED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
             return
         if launch == 0:
             outcome = BINNED
@@ -966,7 +981,7 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                 if bin_total[0] > wp.int64(bins.shape[0]):
                     outcome = BINS_TOO_SMALL
             sync[OUTCOME] = outcome
-        if not all_arrived(sync, BARRIER_OFFSETS, launches, ABORTED):
+        if not all_arrived(sync, BARRIER_OFFSETS, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
             return
         if sync[OUTCOME] != BINNED or stop_after_binning != 0:
             return
@@ -976,7 +991,7 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
         for slot in range(first, first + binned_count[chunk]):
             bin_triangle(binned_rect, slot, chunk, tiles_x, cursors, bins)
         chunk = take_next_item_from(sync, QUEUE_FILL)
-    if not all_arrived(sync, BARRIER_FILLED, launches, ABORTED):
+    if not all_arrived(sync, BARRIER_FILLED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
         return
     tiles = bin_start.shape[0] - 1
     k = take_next_item_from(sync, QUEUE_TILES)
