@@ -110,14 +110,16 @@ def _os_yield_address() -> int:
 
 
 _sample_cache: dict = {}
+_sample_cache_lock = threading.Lock()
 _NO_CULLING = wp.empty(0, dtype=wp.uint8, device="cpu")
 
 
 def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
     key = (width, height, spp, grid_m, grid_n, seed)
-    if key in _sample_cache:
-        _sample_cache[key] = _sample_cache.pop(key)  # most recently used last
-        return _sample_cache[key]
+    with _sample_cache_lock:  # calls may come from several Python threads at once
+        if key in _sample_cache:
+            _sample_cache[key] = _sample_cache.pop(key)  # most recently used last
+            return _sample_cache[key]
     out = wp.empty((height, width * spp), dtype=wp.vec2, device="cpu")
 
     def launch(job):
@@ -126,9 +128,10 @@ def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
                   inputs=[spp, grid_m, grid_n, seed, width, first_row, out])
 
     run_all(launch, _chunks(height, threads, minimum=1), threads)
-    _sample_cache[key] = out
-    while len(_sample_cache) > CACHED_SAMPLE_LAYOUTS:
-        del _sample_cache[next(iter(_sample_cache))]
+    with _sample_cache_lock:
+        _sample_cache[key] = out
+        while len(_sample_cache) > CACHED_SAMPLE_LAYOUTS:
+            del _sample_cache[next(iter(_sample_cache))]
     return out
 
 

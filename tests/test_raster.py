@@ -540,6 +540,27 @@ def test_a_launch_failing_to_start_releases_the_others(monkeypatch):
     assert (ids >= 0).any()
 
 
+def test_calls_from_several_python_threads_take_turns_and_agree():
+    """Each call's launches wait for each other on the thread pool: calls made at once from
+    several Python threads must neither deadlock (one call's launches queued behind another's)
+    nor mix their work, and give each the buffer a lone call gives."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    geom = Geometry(scene_of(icosphere(4)))
+    cameras = [camera_data(camera, 96, 72) for camera in random_cameras(scene_of(icosphere(4)), 4, seed=9)]
+    alone = [visibility_buffer(geom.positions, geom.indices, cam, threads=2).numpy().copy() for cam in cameras]
+
+    def draw(k):
+        return [visibility_buffer(geom.positions, geom.indices, cameras[(k + i) % 4], threads=2).numpy().copy()
+                for i in range(6)]
+
+    with ThreadPoolExecutor(3) as callers:
+        results = list(callers.map(draw, range(3)))
+    for k, buffers in enumerate(results):
+        for i, buffer in enumerate(buffers):
+            np.testing.assert_array_equal(buffer, alone[(k + i) % 4])
+
+
 def test_back_face_culling_drops_exactly_the_faces_turned_away():
     corners = [pixel_to_plane(10, 10), pixel_to_plane(20, 50), pixel_to_plane(50, 12)]
     geom = mesh_geometry(corners, [[0, 1, 2]])
