@@ -415,12 +415,11 @@ def keep_nearest(out: wp.array2d(dtype=wp.uint64), row: int, col: int, entry: wp
 
 
 @wp.func
-def covers_edge_origin(xa: wp.int64, ya: wp.int64, xb: wp.int64, yb: wp.int64, flip: wp.int64) -> bool:
-    """Whether the origin is inside edge a -> b (coordinates relative to the sample), by
-    rasterize_triangle's rule: flip (+-1) orients the triangle counter-clockwise, and a sample on
-    the edge counts only if the edge owns its boundary."""
-    e = (xa * yb - xb * ya) * flip
-    return e > wp.int64(0) or (e == wp.int64(0) and owns_boundary((ya - yb) * flip, (xb - xa) * flip))
+def inside_edge(e: wp.int64, a: wp.int64, b: wp.int64) -> bool:
+    """Whether a sample with value e of the edge function a x + b y + c (its triangle oriented
+    counter-clockwise) is inside that edge, by rasterize_triangle's rule: e > 0, or e == 0 on an
+    edge that owns its boundary."""
+    return e > wp.int64(0) or (e == wp.int64(0) and owns_boundary(a, b))
 
 
 @wp.func
@@ -444,11 +443,14 @@ def pixel_centre_depth(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, w0: wp.float64,
     flip = wp.int64(1)
     if area < wp.int64(0):
         flip = wp.int64(-1)
-    if not (covers_edge_origin(x1, y1, x2, y2, flip) and covers_edge_origin(x2, y2, x0, y0, flip)
-            and covers_edge_origin(x0, y0, x1, y1, flip)):
+    # edge i runs between the other two vertices, its function evaluated at the sample (the origin)
+    e0 = (x1 * y2 - x2 * y1) * flip
+    e1 = (x2 * y0 - x0 * y2) * flip
+    e2 = (x0 * y1 - x1 * y0) * flip
+    if not (inside_edge(e0, (y1 - y2) * flip, (x2 - x1) * flip) and inside_edge(e1, (y2 - y0) * flip, (x0 - x2) * flip)
+            and inside_edge(e2, (y0 - y1) * flip, (x1 - x0) * flip)):
         return False, 0.0
-    weights = (w0 * wp.float64((x1 * y2 - x2 * y1) * flip) + w1 * wp.float64((x2 * y0 - x0 * y2) * flip)
-               + w2 * wp.float64((x0 * y1 - x1 * y0) * flip))
+    weights = w0 * wp.float64(e0) + w1 * wp.float64(e1) + w2 * wp.float64(e2)
     return True, interpolated_depth(weights, wp.float64(area * flip), orthographic)
 
 
@@ -901,10 +903,11 @@ def all_arrived(sync: wp.array(dtype=wp.int32), slot: int, launches: int, aborte
     visible to all); False if the call was aborted meanwhile. After every spins_before_yield
     spins (tens of microseconds) it calls ``os_yield`` (the address of the C library's
     sched_yield; 0: never), lest a launch waiting for another that is not running (more threads
-    than cores, or cores taken by other processes) hold the core that one needs. Spinning rather than returning to Python
-    between stages: a Python barrier's wake-ups, and the GIL passed back and forth for each
-    stage's launch, cost ~1.5 ms of a call on two threads (development measurement, nothing to
-    draw at 512²: 2.6-3.6 ms on two threads against 1.1-2.5 on one)."""
+    than cores, or cores taken by other processes) hold the core that one needs. Spinning
+    rather than returning to Python between stages: a Python barrier's wake-ups, and the GIL
+    passed back and forth for each stage's launch, cost ~1.5 ms of a call on two threads
+    (development measurement, nothing to draw at 512²: 2.6-3.6 ms on two threads against
+    1.1-2.5 on one)."""
     ...
 
 
@@ -941,13 +944,13 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     they touch in row ``chunk`` of tile_counts (a chunk is one launch's: no atomics), or the
     chunk's bad_indices set for a triangle with an index out of range (it is not read). Launch 0
     then lays out the bins (bin_offsets) and records the OUTCOME in ``sync``; all stop unless it
-    is BINNED (or if stop_after_binning, to time the parts apart). From FILL: each listed triangle's slot appended to the bin of every tile its
-    rectangle touches, chunk by chunk from another queue; then tiles taken from a third queue,
-    the k-th taken tile k tile_stride modulo the tile count, each drawn by the launch that took it
-    alone (rasterize_tile). Every queue hands out work to whichever launch asks first, so one
-    with cheaper work (culled back faces, triangles off screen) takes more. ``sync`` must be
-    zeroed before a call (and its FILL barrier, queues and outcome before resuming there);
-    ``os_yield`` is all_arrived's.
+    is BINNED (or if stop_after_binning, to time the parts apart). From FILL: each listed
+    triangle's slot appended to the bin of every tile its rectangle touches, chunk by chunk from
+    another queue; then tiles taken from a third queue, the k-th taken tile k tile_stride modulo
+    the tile count, each drawn by the launch that took it alone (rasterize_tile). Every queue
+    hands out work to whichever launch asks first, so one with cheaper work (culled back faces,
+    triangles off screen) takes more. ``sync`` must be zeroed before a call (and its FILL
+    barrier, queues and outcome before resuming there); ``os_yield`` is all_arrived's.
     """
     if first_stage == START:
         rows = share(proj.height, launches, 1)
