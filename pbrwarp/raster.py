@@ -32,9 +32,9 @@ from pbrwarp.kernels.loading import load_for_cpu
 NO_TRIANGLE = 0xFFFFFFFFFFFFFFFF
 TILE_SIZE = int(rk.TILE_SIZE)
 MAX_IMAGE_SIZE = rk.MAX_IMAGE_SIZE
-# Fewest vertices or triangles worth a launch of their own: below this, a launch costs more
-# than the work it would share (with the stages meeting at barriers, 4096 bins a 15k-triangle
-# mesh ~10% faster on 2 threads than 16384 did).
+# Fewest vertices or triangles worth a thread's share of projection or a chunk of binning: below
+# this, sharing costs more than the work (with the stages meeting at barriers, 4096 bins a
+# 15k-triangle mesh ~10% faster on 2 threads than 16384 did).
 MIN_CHUNK = 4096
 # Chunks of triangles per thread in binning, taken from a shared queue: a thread whose chunks
 # cost less (back faces culled, triangles off screen) takes more rather than waiting.
@@ -74,10 +74,9 @@ RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 7.63e-9
 KERNELS = (rk.sample_positions, rk.visibility_pipeline)
 
 
-def _chunks(n: int, parts: int, minimum: int = MIN_CHUNK):
-    """(index, first, count) of up to ``parts`` contiguous non-empty ranges, of at least
-    ``minimum`` elements unless there is only one, covering [0, n)."""
-    step = max(minimum, math.ceil(n / parts))
+def _chunks(n: int, parts: int):
+    """(index, first, count) of up to ``parts`` contiguous non-empty ranges covering [0, n)."""
+    step = max(1, math.ceil(n / parts))
     return [(k, first, min(step, n - first)) for k, first in enumerate(range(0, n, step))]
 
 
@@ -127,7 +126,7 @@ def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
         wp.launch(rk.sample_positions, dim=rows * width * spp, device="cpu",
                   inputs=[spp, grid_m, grid_n, seed, width, first_row, out])
 
-    run_all(launch, _chunks(height, threads, minimum=1), threads)
+    run_all(launch, _chunks(height, threads), threads)
     with _sample_cache_lock:
         _sample_cache[key] = out
         while len(_sample_cache) > CACHED_SAMPLE_LAYOUTS:
