@@ -9,9 +9,10 @@ Samples per second (one per pixel, every pixel counted, hit or not) of
   shared counter as the renderer's do (pbrwarp.render.ROWS_PER_TAKE at a time);
 - Open3D's RaycastingScene.cast_rays (Embree, all cores) on the same rays, precomputed,
   when open3d is installed.
-The raster also with every back face culled, as pw.render draws single-sided meshes (glTF's
-default) and closed ones seen from outside: for the closed icospheres the buffer names the same
-triangles. Meshes: an icosphere and the Stanford bunny at 512², 1024², 2048²; icospheres of 20k
+The raster culls the mesh's clusters (pbrwarp.raster.triangle_clusters, as pw.render does), and
+is also timed without them; and with every back face culled, as pw.render draws single-sided
+meshes (glTF's default) and closed ones seen from outside: for the closed icospheres the buffer
+names the same triangles. Meshes: an icosphere and the Stanford bunny at 512², 1024², 2048²; icospheres of 20k
 to 1.3M triangles, Suzanne subdivided to 15k, the happy Buddha to 1.6M triangles and a 2M-triangle
 terrain (a 1000 x 1000 height field seen at a slant) at 1024². Also the
 raster's time split (binning vs rasterization) and least-squares cost models, time = a triangles
@@ -94,21 +95,24 @@ def bench_case(label, mesh, size, repeats, threads_all):
 
     every_face = wp.ones(triangles, dtype=wp.uint8, device="cpu")
 
-    def raster(threads, out=buffer, timings=None, cull=None):
+    def raster(threads, out=buffer, timings=None, cull=None, clusters=geometry.clusters, counts=None):
         return visibility_buffer(geometry.positions, geometry.indices, cam, threads=threads, out=out, timings=timings,
-                                 cull_back_faces=cull)
+                                 cull_back_faces=cull, clusters=clusters, counts=counts)
 
-    # 1 and all threads, reused and new buffer, in turn, so that a burst of load on this shared
-    # machine slows every variant alike rather than one of them (their ratios matter)
-    variants = {f"raster_ms_{threads}t": (threads, buffer, None) for threads in sorted({1, threads_all})}
-    variants[f"raster_new_buffer_ms_{threads_all}t"] = (threads_all, None, None)
-    variants[f"raster_culled_ms_{threads_all}t"] = (threads_all, buffer, every_face)
+    # 1 and all threads, reused and new buffer, with and without clusters, in turn, so that a
+    # burst of load on this shared machine slows every variant alike rather than one of them
+    # (their ratios matter)
+    variants = {f"raster_ms_{threads}t": (threads, buffer, None, geometry.clusters)
+                for threads in sorted({1, threads_all})}
+    variants[f"raster_new_buffer_ms_{threads_all}t"] = (threads_all, None, None, geometry.clusters)
+    variants[f"raster_culled_ms_{threads_all}t"] = (threads_all, buffer, every_face, geometry.clusters)
+    variants[f"raster_without_clusters_ms_{threads_all}t"] = (threads_all, buffer, None, None)
     times = {key: [] for key in variants}
     splits = []
     for repeat in range(repeats + 1):  # the first round warms up
-        for key, (threads, out, cull) in variants.items():
+        for key, (threads, out, cull, clusters) in variants.items():
             t0 = time.perf_counter()
-            raster(threads, out, None, cull)
+            raster(threads, out, None, cull, clusters)
             if repeat:
                 times[key].append(time.perf_counter() - t0)
         # the split in a call of its own, as timing the parts apart stops the launches between them
@@ -124,7 +128,15 @@ def bench_case(label, mesh, size, repeats, threads_all):
     faces = wp.empty((size, size), dtype=wp.int32, device="cpu")
     load_for_cpu(ray_cast_rows)
     row[f"raycast_ms_{threads_all}t"] = 1e3 * median_time(lambda: ray_cast(geometry, cam, threads_all, faces), repeats)
-    ids, _ = decode(raster(threads_all))
+    counts, culled_counts = {}, {}
+    ids, _ = decode(raster(threads_all, counts=counts))
+    raster(threads_all, cull=every_face, counts=culled_counts)
+    row["clusters"] = counts["clusters"]
+    row["clusters_occluded"] = counts["occluded"] / counts["clusters"]
+    row["clusters_facing_away_culled"] = culled_counts["facing_away"] / counts["clusters"]
+    row["clusters_occluded_culled"] = culled_counts["occluded"] / counts["clusters"]
+    row["same_buffer_without_clusters"] = bool(np.array_equal(raster(threads_all).numpy().copy(),
+                                                              raster(threads_all, clusters=None).numpy()))
     row["coverage"] = float((ids >= 0).mean())
     row["same_triangle"] = float((ids == faces.numpy()).mean())
     row["culled_same_triangle"] = float((decode(raster(threads_all, cull=every_face))[0] == ids).mean())
@@ -170,9 +182,10 @@ def markdown(rows, model, threads_all):
     t = threads_all
     lines = [
         f"| mesh | triangles | size | raster ms 1t / {t}t | speedup | {t}t with a new buffer | binning / rasterization ms {t}t | "
-        f"back faces culled ms {t}t | ray cast ms {t}t | Embree ms | raster / ray cast / Embree Msamples/s | "
-        f"raster ÷ Embree (culled) | model raster / ray cast ms | coverage | same triangle (culled) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        f"without clusters ms {t}t | back faces culled ms {t}t | ray cast ms {t}t | Embree ms | "
+        f"raster / ray cast / Embree Msamples/s | raster ÷ Embree (culled) | clusters occluded (culled: facing away + occluded) | "
+        f"model raster / ray cast ms | coverage | same triangle (culled) |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         embree_ms = f"{r['embree_ms']:.1f}" if "embree_ms" in r else "n/a"
@@ -182,8 +195,11 @@ def markdown(rows, model, threads_all):
         lines.append(
             f"| {r['mesh']} | {r['triangles']:,} | {r['size']}² | {r['raster_ms_1t']:.1f} / {r[f'raster_ms_{t}t']:.1f} | "
             f"{r['raster_speedup']:.2f}x | {r[f'raster_new_buffer_ms_{t}t']:.1f} | {r['binning_ms']:.1f} / {r['rasterization_ms']:.1f} | "
+            f"{r[f'raster_without_clusters_ms_{t}t']:.1f} | "
             f"{r[f'raster_culled_ms_{t}t']:.1f} | {r[f'raycast_ms_{t}t']:.1f} | {embree_ms} | "
             f"{r[f'raster_msamples_per_s_{t}t']:.1f} / {r[f'raycast_msamples_per_s_{t}t']:.1f} / {embree_rate} | {ratio} | "
+            f"{100 * r['clusters_occluded']:.0f}% ({100 * r['clusters_facing_away_culled']:.0f}% + "
+            f"{100 * r['clusters_occluded_culled']:.0f}%) | "
             f"{r['raster_model_ms']:.1f} / {r['raycast_model_ms']:.1f} | {r['coverage']:.3f} | "
             f"{r['same_triangle']:.5f} ({r['culled_same_triangle']:.5f}) |")
     lines += [
@@ -193,13 +209,20 @@ def markdown(rows, model, threads_all):
         "bins laid out; rasterization = the bins filled and the binned triangles drawn, tile by tile; timed in "
         "a call of their own that stops the launches between the two), sample "
         "positions cached, output buffer reused (out=) except in the new-buffer column, whose fresh pages "
-        "page-fault; the four raster variants are timed in turn, round after round. Back faces culled: every "
+        "page-fault, with the mesh's clusters of 128 triangles culled where they lie off screen, face away "
+        "(if flagged) or lie behind what the clusters facing the eye drew (clusters=, as pw.render passes "
+        "them) except in the without-clusters column; the five raster variants are timed in turn, round "
+        "after round. Clusters occluded: the fraction culled as hidden; in brackets, with back faces culled, "
+        "those culled as facing away and as hidden. Back faces culled: every "
         "triangle flagged in cull_back_faces, as pw.render flags single-sided meshes and closed ones seen from "
         "outside (the icospheres are closed; the others stand for single-sided meshes). Ray cast: "
         "wp.mesh_query_ray per pixel in row bands on the thread pool. Embree: "
         "Open3D RaycastingScene.cast_rays on all cores, rays precomputed. Same triangle: fraction of pixels "
         "where raster and ray cast name the same triangle (or both none); in brackets, where the culled "
         "raster names the same triangle as the full one.",
+        "",
+        "Buffers drawn with clusters culled equal those drawn without, bit for bit, in "
+        f"{sum(r['same_buffer_without_clusters'] for r in rows)} of {len(rows)} rows.",
         "",
         f"Cost models on {t} threads, least squares weighted by 1/time over all rows (pbrwarp/raster.py keeps them):",
         f"- raster (reused buffer) ≈ {model['raster_seconds_per_triangle'] * 1e9:.1f} ns × triangles + "

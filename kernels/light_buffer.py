@@ -25,15 +25,8 @@ stay in that cell from its origin's projection alone. A ray whose cells cannot b
 
 import warp as wp
 
-from .raster import (
-    Projection,
-    camera_coordinates,
-    clipped_rect,
-    empty_rect,
-    ray_triangle_intersection,
-    screen_point,
-    triangle_corners,
-)
+from .projection import Projection, camera_coordinates, screen_point
+from .raster import clipped_rect, empty_rect, ray_triangle_intersection, triangle_corners
 from .robust import RAY_FAR
 from .shadow_map import CUBE_FACES, cube_face
 

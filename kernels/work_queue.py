@@ -16,6 +16,12 @@ def take_next_item_from(counters: wp.array(dtype=wp.int32), slot: int) -> int:
     ...
 
 
+@wp.func_native("__atomic_fetch_add(counters.data + slot, amount, __ATOMIC_RELAXED);")
+def add_atomically(counters: wp.array(dtype=wp.int32), slot: int, amount: int):
+    """counters[slot] += amount, atomically across threads."""
+    ...
+
+
 @wp.func
 def take_next_item(counter: wp.array(dtype=wp.int32)) -> int:
     """The counter's (counter[0]'s) value before incrementing it by one, atomically across threads."""

@@ -22,6 +22,7 @@ from .errors import InputError
 from .lights import SPOT
 from .locality import inverse_permutation, locality_order
 from .materials import Material
+from .raster import Clusters, triangle_clusters
 from .scene import unit_rows
 from .textures import WRAP_MODES
 from pbrwarp.kernels.lights import LightData
@@ -45,6 +46,8 @@ class _Geometry:
     tangents: wp.array
     colors: wp.array
     face_primitive: wp.array
+    # bounds of runs of triangles, for the rasterizer's occlusion culling
+    clusters: Clusters
 
 
 @dataclass
@@ -62,6 +65,8 @@ class GpuScene:
     material_rows: list
     # kept alive while ``data`` refers to them
     _keep: tuple
+    # the rasterizer's clusters of data.positions and data.indices (pbrwarp.raster.triangle_clusters)
+    clusters: Clusters | None = None
 
 
 def _primitive_tangents(prim):
@@ -119,6 +124,7 @@ def _build_geometry(prims, key) -> _Geometry:
         tangents=wp.array(tangents[vertex_order], dtype=wp.vec4, device="cpu"),
         colors=wp.array(colors[vertex_order], dtype=wp.vec4, device="cpu"),
         face_primitive=wp.array(face_primitive[face_order], dtype=wp.int32, device="cpu"),
+        clusters=triangle_clusters(wp_positions, wp_indices),
     )
 
 
@@ -228,7 +234,8 @@ def upload(scene) -> GpuScene:
     data.textures, data.texels = texels.table, texels.texels
     data.lights = wp.array(lights if lights else [LightData()], dtype=LightData, device="cpu")
     data.num_lights = len(lights)
-    return GpuScene(data=data, material_rows=materials, _keep=(geometry, texels, data.materials, data.lights))
+    return GpuScene(data=data, material_rows=materials, _keep=(geometry, texels, data.materials, data.lights),
+                    clusters=geometry.clusters)
 
 
 def _is_closed_volume(prim) -> bool:

@@ -9,11 +9,14 @@ each); triangles' screen rectangles, small triangles drawn into the buffer at on
 minima, as two threads may write one sample) and larger ones binned into TILE_SIZE tiles, a few
 chunks of triangles per thread taken from a shared queue; the bins laid out and filled; then
 tiles taken from another queue, a tile drawn by one launch only. A sample keeps the minimum of
-its entries whatever the order they come in, so the buffer does not depend on the thread count."""
+its entries whatever the order they come in, so the buffer does not depend on the thread count.
+With a mesh's :func:`triangle_clusters`, clusters off screen, facing away (where flagged) or
+hidden behind what the clusters facing the eye drew are skipped (kernels/occlusion.py)."""
 
 from __future__ import annotations
 
 import ctypes
+from dataclasses import dataclass
 import functools
 import math
 import threading
@@ -25,6 +28,7 @@ import warp as wp
 from . import huge_pages
 from .errors import InputError, InputTypeError
 from .parallel import run_all, run_together, thread_count
+from pbrwarp.kernels import occlusion as ok
 from pbrwarp.kernels import raster as rk
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
@@ -71,7 +75,9 @@ RASTER_SECONDS_PER_TRIANGLE = 23.3e-9
 RASTER_SECONDS_PER_SAMPLE = 6.94e-9
 RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 7.63e-9
 
-KERNELS = (rk.sample_positions, rk.visibility_pipeline)
+KERNELS = (rk.sample_positions, rk.visibility_pipeline, ok.cluster_bounds)
+CLUSTER_SIZE = int(ok.CLUSTER_SIZE)
+OCCLUSION_TILE = int(ok.OCCLUSION_TILE)
 
 
 def _chunks(n: int, parts: int):
@@ -108,9 +114,48 @@ def _os_yield_address() -> int:
         return 0
 
 
+@dataclass(frozen=True)
+class Clusters:
+    """Bounds of a mesh's clusters of CLUSTER_SIZE consecutive triangles, for occlusion culling
+    (kernels/occlusion.py), from :func:`triangle_clusters`; valid for the very position and
+    index arrays they were built from, while those are not changed."""
+
+    positions: wp.array
+    indices: wp.array
+    lower: wp.array
+    upper: wp.array
+    axis: wp.array
+    spread: wp.array
+
+    def __len__(self):
+        return len(self.lower)
+
+
+def triangle_clusters(positions: wp.array, indices: wp.array) -> Clusters:
+    """The clusters of a mesh for ``visibility_buffer(clusters=...)``: triangles [k CLUSTER_SIZE,
+    (k + 1) CLUSTER_SIZE) form cluster k, so they cull well when neighbours are stored together
+    (as upload stores them, pbrwarp/locality.py). Build them again after changing the arrays."""
+    vertices, triangles = _check_geometry(positions, indices)
+    if triangles:
+        idx = indices.numpy()
+        if idx.min() < 0 or idx.max() >= vertices:
+            raise InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], "
+                             f"{vertices} vertices")
+    count = math.ceil(triangles / CLUSTER_SIZE)
+    lower, upper, axis = (wp.empty(count, dtype=wp.vec3, device="cpu") for _ in range(3))
+    spread = wp.empty(count, dtype=wp.float32, device="cpu")
+    _load_kernels()
+    if count:
+        wp.launch(ok.cluster_bounds, dim=count, device="cpu",
+                  inputs=[positions, indices, triangles, lower, upper, axis, spread])
+    return Clusters(positions, indices, lower, upper, axis, spread)
+
+
 _sample_cache: dict = {}
 _sample_cache_lock = threading.Lock()
 _NO_CULLING = wp.empty(0, dtype=wp.uint8, device="cpu")
+_NO_CLUSTERS = wp.empty(0, dtype=wp.vec3, device="cpu")
+_NO_SPREADS = wp.empty(0, dtype=wp.float32, device="cpu")
 
 
 def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
@@ -196,7 +241,8 @@ def _check_geometry(positions, indices) -> tuple[int, int]:
 def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, spp: int = 1, grid_m: int = 1,
                       grid_n: int = 1, seed: int = 0, threads: int | None = None,
                       out: wp.array | None = None, timings: dict | None = None,
-                      cull_back_faces: wp.array | None = None, orthographic: bool = False) -> wp.array:
+                      cull_back_faces: wp.array | None = None, orthographic: bool = False,
+                      clusters: Clusters | None = None, counts: dict | None = None) -> wp.array:
     """The nearest triangle of every camera sample: a (cam.height, cam.width * spp) uint64
     wp.array, sample s of pixel (px, py) at [py, px * spp + s] (see :func:`sample_positions`).
 
@@ -218,6 +264,17 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     small triangles drawn, the others binned and the bins laid out), "raster" (bins filled,
     tiles drawn); the launches then stop between the two, which costs a little.
 
+    ``clusters`` (:func:`triangle_clusters` of these very arrays) turns on culling of clusters:
+    those whose bounding box lies off screen are skipped; so are those facing away from the eye
+    by more than 3° where every triangle is flagged in ``cull_back_faces``; the clusters facing
+    the eye are drawn first, and then the others skipped where their box lies behind everything
+    drawn over it (kernels/occlusion.py). The buffer is the same, bit for bit (for the clusters
+    facing away: unless one of their triangles, under ~1/50 pixel across and within 3° of
+    edge-on, has its winding flipped by the snapping of its vertices); a dense closed mesh seen
+    from outside draws about half its triangles.
+    ``counts``, if a dict, then receives how many clusters there are ("clusters") and were
+    "off_screen", "deferred" (facing away, tested) and "occluded".
+
     ``orthographic`` draws the parallel projection along cam.forward instead (see
     :func:`projection`), depth then the distance in front of the plane through cam.eye; only
     triangles wholly in front of that plane and within the guard band are drawn (shadow maps of
@@ -237,6 +294,9 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     elif (not isinstance(cull_back_faces, wp.array) or cull_back_faces.dtype != wp.uint8
           or cull_back_faces.shape != (triangles,) or cull_back_faces.device.is_cuda):
         raise InputError(f"cull_back_faces must be a CPU wp.array of uint8 with one entry per triangle ({triangles})")
+    if clusters is not None and (not isinstance(clusters, Clusters) or clusters.positions is not positions
+                                 or clusters.indices is not indices):
+        raise InputError("clusters must be triangle_clusters(positions, indices) of these very arrays")
     proj = projection(cam, orthographic)
     _load_kernels()
     clock = time.perf_counter()
@@ -247,6 +307,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     tiles = tiles_x * math.ceil(height / TILE_SIZE)
     # chunks of triangles taken from a queue, several per thread so that none waits for another
     chunk_size = max(MIN_CHUNK, math.ceil(triangles / (threads * CHUNKS_PER_THREAD)))
+    chunk_size = math.ceil(chunk_size / CLUSTER_SIZE) * CLUSTER_SIZE  # whole clusters
     chunk_count = max(math.ceil(triangles / chunk_size), 1)
     scratch = _scratch.arrays  # the calling thread's
     screen = _scratch_array(scratch, "screen", vertices, wp.vec2i)
@@ -264,6 +325,16 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     bin_start = wp.empty(tiles + 1, dtype=wp.int32, device="cpu")
     bin_total = wp.zeros(1, dtype=wp.int64, device="cpu")
     sync = wp.zeros(rk.SYNC_SLOTS, dtype=wp.int32, device="cpu")
+    cluster_count = len(clusters) if clusters is not None else 0
+    cluster_rect = _scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i)
+    cluster_nearest = _scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64)
+    occlusion_shape = ((math.ceil(height / OCCLUSION_TILE), math.ceil(width / OCCLUSION_TILE)) if cluster_count
+                       else (1, 1))
+    occlusion = _scratch_array(scratch, "occlusion", math.prod(occlusion_shape), wp.float32).reshape(occlusion_shape)
+    if cluster_count:
+        cluster_arrays = [clusters.lower, clusters.upper, clusters.axis, clusters.spread]
+    else:
+        cluster_arrays = [_NO_CLUSTERS] * 3 + [_NO_SPREADS]
     if out is None:
         out = huge_pages.empty((height, width * spp), wp.uint64)
 
@@ -275,8 +346,8 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                                   indices, vertices, screen, depth_weights, cam, proj, samples, spp, MIN_CHUNK,
                                   chunk_size, math.ceil(chunk_count / threads),
                                   triangles, tiles_x, _tile_stride(tiles), cull_back_faces, binned_count, binned_face,
-                                  binned_rect, tile_counts, bad_indices, cursors, bin_start, bin_total, bins, sync,
-                                  out])
+                                  binned_rect, tile_counts, bad_indices, cursors, bin_start, bin_total, bins,
+                                  *cluster_arrays, cluster_rect, cluster_nearest, occlusion, sync, out])
             except BaseException:
                 sync.numpy()[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one
                 raise
@@ -298,6 +369,11 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
         bins = scratch["bins"] = wp.empty(total, dtype=wp.int32, device="cpu")
     if split or outcome == int(rk.BINS_TOO_SMALL):
         run(int(rk.FILL), False)
+    if counts is not None:
+        tally = sync.numpy()
+        counts.update(clusters=cluster_count, off_screen=int(tally[int(rk.CLUSTERS_OFF_SCREEN)]),
+                      deferred=int(tally[int(rk.CLUSTERS_DEFERRED)]), occluded=int(tally[int(rk.CLUSTERS_OCCLUDED)]),
+                      facing_away=int(tally[int(rk.CLUSTERS_FACING_AWAY)]))
     if timings is not None:
         timings["samples"] = t_samples - clock
         timings["binning"] = t_binned - t_samples

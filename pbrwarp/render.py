@@ -200,7 +200,8 @@ def render(
     if features.visibility == "raster":
         cull, _ = back_face_culling(scene, gpu, camera.eye)
         vbuffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, spp, grid_m, grid_n, seed, threads,
-                                    out=reused_buffer("camera", height, width * spp), cull_back_faces=cull)
+                                    out=reused_buffer("camera", height, width * spp), cull_back_faces=cull,
+                                    clusters=gpu.clusters)
     else:
         vbuffer = wp.empty((1, 1), dtype=wp.uint64, device="cpu")
 

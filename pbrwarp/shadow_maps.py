@@ -134,7 +134,7 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
         for cam, view in pairs:
             buffer = visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads,
                                        out=reused_buffer("shadow map", cam.height, cam.width),
-                                       orthographic=bool(view.orthographic))
+                                       orthographic=bool(view.orthographic), clusters=gpu.clusters)
             if masked:
                 _see_through_cut_outs(gpu, cam, view, buffer, threads)
             depths.append(decode(buffer)[1])
