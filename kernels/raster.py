@@ -908,13 +908,15 @@ def share(n: int, parts: int, minimum: int) -> int:
     return wp.max(minimum, (n + parts - 1) / parts)
 
 
-# What a pass over the chunks draws: every triangle (no culling); with culling, first the clusters
-# that cannot be tested or face the eye (the others deferred), then the deferred ones not occluded,
-# or all of them where too few were deferred to pay for the occlusion tiles.
+# What a pass over the chunks draws: every triangle (no clusters); the clusters not culled, in one
+# pass; or in two, first the clusters that cannot be tested or face the eye (the others
+# deferred), then the deferred ones not occluded, or all of them where too few were deferred to
+# pay for the occlusion tiles.
 DRAW_ALL = wp.constant(0)
-DRAW_FIRST = wp.constant(1)
-DRAW_UNOCCLUDED = wp.constant(2)
-DRAW_DEFERRED = wp.constant(3)
+DRAW_CULLED = wp.constant(1)
+DRAW_FIRST = wp.constant(2)
+DRAW_UNOCCLUDED = wp.constant(3)
+DRAW_DEFERRED = wp.constant(4)
 # Samples per deferred triangle above which the occlusion tiles are not built: building them reads
 # every sample (~1 ns each), testing a cluster saves ~25 ns per triangle it culls, and a few tenths
 # of the deferred triangles are culled where culling works at all (development measurements).
@@ -944,7 +946,7 @@ def count_chunk(draw: int, chunk: int, positions: wp.array(dtype=wp.vec3), indic
         cluster = first / CLUSTER_SIZE
         cluster_end = wp.min(first + CLUSTER_SIZE, end)
         drawn = True
-        if draw == DRAW_FIRST:
+        if draw == DRAW_CULLED or draw == DRAW_FIRST:
             cluster_nearest[cluster] = NOT_DEFERRED
             lo = cluster_lower[cluster]
             hi = cluster_upper[cluster]
@@ -959,7 +961,7 @@ def count_chunk(draw: int, chunk: int, positions: wp.array(dtype=wp.vec3), indic
                         if all_flagged(cull_back_faces, first, cluster_end):
                             facing_away += 1
                             drawn = False
-                if drawn:
+                if drawn and draw == DRAW_FIRST:
                     rect, nearest = cluster_view(proj, lo, hi)
                     if rect[0] > rect[2]:
                         off_screen += 1
@@ -969,7 +971,7 @@ def count_chunk(draw: int, chunk: int, positions: wp.array(dtype=wp.vec3), indic
                         cluster_nearest[cluster] = nearest
                         deferred += 1
                         drawn = False
-        elif draw != DRAW_ALL:
+        elif draw == DRAW_UNOCCLUDED or draw == DRAW_DEFERRED:
             drawn = False
             if cluster_nearest[cluster] != NOT_DEFERRED:
                 drawn = True
@@ -991,6 +993,7 @@ def count_chunk(draw: int, chunk: int, positions: wp.array(dtype=wp.vec3), indic
 
 @wp.kernel
 def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after_binning: int, os_yield: wp.uint64,
+                        occlusion_pass: int,
                         positions: wp.array(dtype=wp.vec3),
                         indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
                         depth_weights: wp.array(dtype=wp.float64), cam: CameraData, proj: Projection,
@@ -1019,12 +1022,13 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     binned_face and binned_rect [chunk chunk_size, + binned_count[chunk]) and counted per tile
     they touch in row ``chunk`` of tile_counts (a chunk is one launch's: no atomics), or the
     chunk's bad_indices set for a triangle with an index out of range (it is not read). With
-    clusters (cluster_lower... nonempty) the chunks are drawn cluster by cluster and twice
-    (count_chunk): first all but the clusters off screen, facing away from the eye where every
-    triangle is flagged for culling, or deferred (facing away, their rectangle and nearest depth
-    kept in cluster_rect and cluster_nearest); then, once each launch has built its share of the
-    occlusion tiles from the buffer (if enough triangles were deferred to pay for them), the
-    deferred clusters not occluded, their chunks taken from a second queue. Launch 0
+    clusters (cluster_lower... nonempty) the chunks are drawn cluster by cluster (count_chunk),
+    but for the clusters off screen or facing away from the eye where every triangle is flagged
+    for culling; with occlusion_pass, in two passes: first those facing the eye or not testable,
+    the others deferred (their rectangle and nearest depth kept in cluster_rect and
+    cluster_nearest); then, once each launch has built its share of the occlusion tiles from the
+    buffer (if enough triangles were deferred to pay for them), the deferred clusters not
+    occluded, their chunks taken from a second queue. Launch 0
     then lays out the bins (bin_offsets) and records the OUTCOME in ``sync``; all stop unless it
     is BINNED (or if stop_after_binning, to time the parts apart). From FILL: each listed
     triangle's slot appended to the bin of every tile its rectangle touches, chunk by chunk from
@@ -1045,13 +1049,14 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
         if not all_arrived(sync, BARRIER_PROJECTED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
             return
         passes = int(1)
+        draw = DRAW_ALL
         if cluster_lower.shape[0] > 0:
-            passes = 2
-        for k in range(passes):
-            draw = DRAW_ALL
-            queue = QUEUE_CHUNKS
-            if passes == 2:
+            draw = DRAW_CULLED
+            if occlusion_pass != 0:
+                passes = 2
                 draw = DRAW_FIRST
+        for k in range(passes):
+            queue = QUEUE_CHUNKS
             if k == 1:
                 # the clusters facing away are tested against what those facing the eye drew
                 if not all_arrived(sync, BARRIER_DRAWN_FIRST, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):

@@ -111,12 +111,19 @@ def _visibility(mode: str, triangles: int, samples: int) -> tuple[str, str]:
     estimate = f"{triangles:,} triangles, {samples:,} samples: about {1e3 * raster_s:.1f} ms rasterized, {1e3 * raycast_s:.1f} ms ray cast"
     if mode != "auto":
         path = mode
-        return path, f"primary visibility {'rasterized' if path == 'raster' else 'ray cast'} (visibility={mode!r}; {estimate})"
+        return path, f"primary visibility {_path_words(path)} (visibility={mode!r}; {estimate})"
     if samples * BYTES_PER_SAMPLE > MAX_AUTO_VISIBILITY_BUFFER_BYTES:
         return "raycast", (f"primary visibility ray cast: a visibility buffer of {samples:,} samples would take "
                            f"{samples * BYTES_PER_SAMPLE / 2**20:,.0f} MiB ({estimate})")
     path = "raster" if raster_s < raycast_s else "raycast"
-    return path, f"primary visibility {'rasterized' if path == 'raster' else 'ray cast'}, the cheaper ({estimate})"
+    return path, f"primary visibility {_path_words(path)}, the cheaper ({estimate})"
+
+
+def _path_words(path: str) -> str:
+    if path == "raster":
+        return (f"rasterized (clusters of {raster.CLUSTER_SIZE} triangles skipped where off screen, facing away "
+                "from the eye if single-sided or closed, or hidden)")
+    return "ray cast"
 
 
 def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "auto",

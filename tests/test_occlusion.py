@@ -4,6 +4,7 @@ buffer it draws is the one drawn without it, bit for bit."""
 
 import numpy as np
 import pytest
+import trimesh
 
 import pbrwarp as pw
 import warp as wp
@@ -280,3 +281,22 @@ def test_clusters_of_other_arrays_or_bad_indices_are_rejected():
     bad = wp.array(np.array([0, 1, len(positions)], np.int32), dtype=wp.int32)
     with pytest.raises(InputError, match="out of range"):
         triangle_clusters(positions, bad)
+
+
+def test_occlusion_pass_only_where_enough_clusters_face_away():
+    """A height field seen from above faces the eye all over: drawn in one pass, nothing
+    deferred; a closed mesh defers the half facing away."""
+    n = 100
+    x, z = np.meshgrid(np.linspace(-1, 1, n + 1), np.linspace(-1, 1, n + 1))
+    y = 0.05 * np.sin(3 * x) * np.cos(2 * z)
+    corner = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+    faces = np.concatenate([np.stack([corner, corner + n + 1, corner + n + 2], 1),
+                            np.stack([corner, corner + n + 2, corner + 1], 1)])
+    field = trimesh.Trimesh(np.stack([x, y, z], -1).reshape(-1, 3), faces, process=False)
+    above = pw.Camera.look_at((0.0, 3.0, 0.5), (0.0, 0.0, 0.0), fov_y=50.0)
+    outside = pw.Camera.look_at((0.0, 0.0, 3.0), (0.0, 0.0, 0.0))
+    for mesh, camera, two_passes in ((field, above, False), (icosphere(6), outside, True)):
+        positions, indices, clusters = uploaded(scene_of(mesh))
+        counts = {}
+        visibility_buffer(positions, indices, camera_data(camera, 64, 64), clusters=clusters, counts=counts)
+        assert (counts["deferred"] > 0.3 * counts["clusters"]) == two_passes, counts
