@@ -43,7 +43,7 @@ from pbrwarp.kernels.camera import CameraData, camera_ray_direction  # noqa: E40
 from pbrwarp.kernels.loading import load_for_cpu  # noqa: E402
 from pbrwarp.kernels.robust import RAY_FAR  # noqa: E402
 from pbrwarp.meshes import asset, bunny, icosphere  # noqa: E402
-from pbrwarp.raster import decode, visibility_buffer  # noqa: E402
+from pbrwarp.raster import CLUSTER_SIZE, decode, visibility_buffer  # noqa: E402
 from pbrwarp.kernels.work_queue import take_next_item  # noqa: E402
 from pbrwarp.parallel import run_all  # noqa: E402
 from pbrwarp.render import ROWS_PER_TAKE, _camera_data  # noqa: E402
@@ -209,7 +209,7 @@ def markdown(rows, model, threads_all):
         "bins laid out; rasterization = the bins filled and the binned triangles drawn, tile by tile; timed in "
         "a call of their own that stops the launches between the two), sample "
         "positions cached, output buffer reused (out=) except in the new-buffer column, whose fresh pages "
-        "page-fault, with the mesh's clusters of 128 triangles culled where they lie off screen, face away "
+        f"page-fault, with the mesh's clusters of {CLUSTER_SIZE} triangles culled where they lie off screen, face away "
         "(if flagged) or lie behind what the clusters facing the eye drew (clusters=, as pw.render passes "
         "them) except in the without-clusters column; the five raster variants are timed in turn, round "
         "after round. Clusters occluded: the fraction culled as hidden; in brackets, with back faces culled, "

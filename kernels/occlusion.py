@@ -20,8 +20,10 @@ from .projection import Projection, camera_coordinates, screen_point
 
 wp.set_module_options({"enable_backward": False})
 
-# Triangles per cluster: a few pixels across on a dense mesh at 1024², where culling pays.
-CLUSTER_SIZE = wp.constant(128)
+# Triangles per cluster: a few pixels across on a dense mesh at 1024², where culling pays. Halving
+# clusters of 128 culled more of the happy Buddha (development run: 1.6M triangles at 1024² on two
+# threads, 14% faster than without clusters against 7%), the cluster tests not costing more.
+CLUSTER_SIZE = wp.constant(64)
 # Pixels per side of an occlusion tile.
 OCCLUSION_TILE = wp.constant(8)
 # Occlusion tiles a cluster's rectangle may span and still be tested: larger clusters, whose
@@ -38,8 +40,11 @@ DEPTH_MARGIN = wp.constant(wp.float64(1.0e-6))
 # to be culled as a whole: a triangle that close to edge-on keeps its winding after its vertices
 # are snapped (kernels/raster.py) unless it is under ~1/50 pixel across.
 BACK_FACE_MARGIN = wp.constant(wp.float64(0.05))
-# cluster_nearest of a cluster not waiting for the occlusion test (drawn, or off screen).
+# Fates of clusters in the rasterizer's cluster_nearest, besides the nearest depth (> 0) of one
+# deferred to the occlusion test: drawn in the first pass, or skipped (off screen, facing away,
+# occluded).
 NOT_DEFERRED = wp.constant(wp.float64(-1.0))
+SKIPPED = wp.constant(wp.float64(-2.0))
 
 
 @wp.func

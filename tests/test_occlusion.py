@@ -212,14 +212,15 @@ def test_culling_clusters_leaves_the_buffer_unchanged(name):
     every_face = wp.array(np.ones(len(indices) // 3, np.uint8), dtype=wp.uint8)
     totals = {"off_screen": 0, "occluded": 0, "facing_away": 0}
     for i, camera in enumerate(random_cameras(scene, 20, seed=5)):
-        cam = camera_data(camera, 160, 120)
+        # few samples for the triangles, so that the occlusion pass pays even for the small models
+        cam = camera_data(camera, 112, 84)
         plain, culled, counts = buffers_with_and_without_clusters(positions, indices, clusters, cam,
                                                                   spp=4 if i % 4 == 0 else 1,
                                                                   cull=every_face if i % 2 else None)
         np.testing.assert_array_equal(culled, plain)
         for key in totals:
             totals[key] += counts[key]
-    if len(clusters) >= 64:
+    if name in ("icosphere", "bunny"):  # dense enough for every kind of culling
         assert min(totals.values()) > 0, totals
 
 
