@@ -109,8 +109,12 @@ def bench_case(label, mesh, size, repeats, threads_all):
     variants[f"raster_without_clusters_ms_{threads_all}t"] = (threads_all, buffer, None, None)
     times = {key: [] for key in variants}
     splits = []
+    keys = list(variants)
     for repeat in range(repeats + 1):  # the first round warms up
-        for key, (threads, out, cull, clusters) in variants.items():
+        # each round starts one variant later: the call after a one-thread call pays for waking the
+        # idle second core, which would otherwise always fall on the same variant
+        for key in keys[repeat % len(keys):] + keys[:repeat % len(keys)]:
+            threads, out, cull, clusters = variants[key]
             t0 = time.perf_counter()
             raster(threads, out, None, cull, clusters)
             if repeat:
