@@ -19,8 +19,9 @@ visibility_pipeline runs the stages, launched once per thread, the launches meet
 the buffer cleared and vertices projected; then per triangle its screen rectangle, small
 triangles drawn at once with atomic minima and larger ones binned into tiles; then the binned
 ones drawn, tiles taken from a queue shared by the launches. Given a mesh's clusters
-(kernels/occlusion.py), it draws the triangles in two passes, the clusters facing the eye first
-and then those facing away that the first pass does not hide.
+(kernels/occlusion.py), it skips those off screen or (where flagged) facing away and, where
+enough face away, draws in two passes: the clusters facing the eye first, then those facing
+away that the first pass does not hide.
 """
 
 import warp as wp
