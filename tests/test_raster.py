@@ -12,11 +12,12 @@ import pbrwarp as pw
 import warp as wp
 from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.camera import CameraData, camera_ray_direction
+from pbrwarp.kernels import raster as rk
 from pbrwarp.kernels.raster import covered_steps, ray_triangle_intersection, visible_triangle
 from pbrwarp.kernels.robust import RAY_FAR
 from pbrwarp.kernels.sampling import multi_jittered_sample
 from pbrwarp.meshes import ASSETS, bunny, icosphere
-from pbrwarp.raster import decode, sample_positions, visibility_buffer
+from pbrwarp.raster import decode, projection, sample_positions, visibility_buffer
 from pbrwarp.render import _camera_data, _stratification_grid
 
 GLTF = sorted(ASSETS.glob("gltf/*/glTF*/*.gl*"))
@@ -631,6 +632,53 @@ def test_bad_input_is_rejected_before_warp():
         visibility_buffer(geom.positions, geom.indices, cam, out=wp.empty((64, 63), dtype=wp.uint64))
     with pytest.raises(pw.InputError):
         visibility_buffer(geom.positions, geom.indices, cam, cull_back_faces=wp.zeros(2, dtype=wp.uint8))
+
+
+@wp.kernel(enable_backward=False)
+def project_all(positions: wp.array(dtype=wp.vec3), proj: rk.Projection, screen: wp.array(dtype=wp.vec2i),
+                depth_weights: wp.array(dtype=wp.float64)):
+    rk.project_vertices(positions, proj.to_camera, proj.eye, proj.half_width, proj.half_height, proj.orthographic,
+                        0, positions.shape[0], screen, depth_weights)
+
+
+@pytest.mark.parametrize("orthographic", [False, True])
+def test_vertex_projection_against_float64(orthographic):
+    """Snapped to the nearest 1/4096 pixel of the float64 projection, the codes for vertices behind
+    the camera plane and beyond the guard band, 1/z (or z in parallel) as the depth weight; the
+    same for positions read through a strided view."""
+    rng = np.random.default_rng(5)
+    cam = camera_data(pw.Camera.look_at((0.3, -0.2, 4.0), (0.0, 0.0, 0.0), up=(0.2, 1.0, 0.1), fov_y=60.0), 640, 480)
+    axes = np.array([cam.right, cam.up, cam.forward], np.float64).T
+    # beyond the guard band: near the camera plane in perspective, far to the side in parallel
+    beyond = np.stack([rng.normal(size=300) * 3e3, rng.normal(size=300) * 3e3, rng.uniform(1e-4, 1e-2, 300)], 1)
+    points = np.concatenate([rng.normal(size=(4000, 3)) * 3.0,  # some behind the camera plane
+                             np.array(cam.eye, np.float64) + beyond @ axes.T,
+                             [[0.3, -0.2, 4.0]]]).astype(np.float32)  # the eye itself
+    proj = projection(cam, orthographic)
+    c = (points.astype(np.float64) - np.array(cam.eye, np.float64)) @ np.linalg.inv(axes).T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if orthographic:
+            x, y, weight = (c[:, 0] + 1) * 320, (1 - c[:, 1]) * 240, c[:, 2]
+        else:
+            x, y, weight = (c[:, 0] / c[:, 2] + 1) * 320, (1 - c[:, 1] / c[:, 2]) * 240, 1 / c[:, 2]
+    behind = c[:, 2] <= 0
+    outside = ~behind & ~((np.abs(x) <= float(rk.GUARD_BAND)) & (np.abs(y) <= float(rk.GUARD_BAND)))
+    assert behind.sum() > 100 and outside.sum() > 100
+    doubled = np.zeros((2 * len(points), 3), np.float32)
+    doubled[::2] = points
+    for positions in (wp.array(points, dtype=wp.vec3), wp.array(doubled, dtype=wp.vec3)[::2]):
+        screen = wp.empty(len(points), dtype=wp.vec2i)
+        weights = wp.empty(len(points), dtype=wp.float64)
+        wp.launch(project_all, dim=1, inputs=[positions, proj, screen, weights])
+        q, w = screen.numpy(), weights.numpy()
+        assert np.all(q[behind] == [int(rk.BEHIND_CAMERA), 0])
+        assert np.all(q[outside] == [int(rk.OUTSIDE_GUARD_BAND), 0])
+        shown = ~behind & ~outside
+        pixels = 4096.0
+        np.testing.assert_allclose(q[shown, 0] / pixels, x[shown], rtol=0, atol=0.5 / pixels + 1e-9 * np.abs(x[shown]).max())
+        np.testing.assert_allclose(q[shown, 1] / pixels, y[shown], rtol=0, atol=0.5 / pixels + 1e-9 * np.abs(y[shown]).max())
+        # (z near the camera plane is a difference of the coordinates' magnitude, ~5: 1e-15 of that)
+        np.testing.assert_allclose(w[shown], weight[shown], rtol=1e-12, atol=1e-14)
 
 
 @wp.kernel
