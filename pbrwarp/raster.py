@@ -80,6 +80,9 @@ RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 7.70e-9
 
 KERNELS = (rk.sample_positions, rk.visibility_pipeline, ok.cluster_bounds)
 CLUSTER_SIZE = int(ok.CLUSTER_SIZE)
+# count_chunk draws a cluster from one 64-bit mask of its triangles (kernels/raster.py triangles_to_count)
+assert CLUSTER_SIZE <= 64, "a cluster's triangles must fit in one uint64 mask"
+
 OCCLUSION_TILE = int(ok.OCCLUSION_TILE)
 
 

@@ -635,6 +635,56 @@ def test_bad_input_is_rejected_before_warp():
 
 
 @wp.kernel(enable_backward=False)
+def busy_masks(indices: wp.array(dtype=wp.int32), screen: wp.array(dtype=wp.vec2i), vertex_count: int, spp: int,
+               width: int, height: int, out: wp.array(dtype=wp.uint64)):
+    k = wp.tid()
+    out[k] = rk.triangles_to_count(indices, screen, vertex_count, 64 * k, wp.min(64 * k + 64, indices.shape[0] / 3),
+                                   spp, width, height)
+
+
+@pytest.mark.parametrize("spp", [1, 4])
+def test_triangles_to_count_skips_exactly_the_projected_ones_holding_no_sample(spp):
+    """Against the definition: a projected triangle is skipped iff no pixel of the image has a
+    sample within its rectangle (pixel centres for spp = 1, anywhere in the pixel otherwise);
+    triangles with an index out of range or a vertex not projected are always counted."""
+    rng = np.random.default_rng(spp)
+    width, height, vertices, triangles = 40, 30, 500, 1000
+    pixel = int(rk.PIXEL)
+    screen = np.stack([rng.integers(-3 * pixel, 43 * pixel, vertices), rng.integers(-3 * pixel, 33 * pixel, vertices)], 1)
+    screen[::7] = [int(rk.BEHIND_CAMERA), 0]
+    screen[3::11] = [int(rk.OUTSIDE_GUARD_BAND), 0]
+    # small triangles (most hold no sample): three points within a pixel of a vertex, not
+    # projected where that vertex is not
+    centres = rng.integers(0, vertices, triangles)
+    near = rng.integers(-pixel, pixel, (triangles, 3, 2))
+    points = np.concatenate([screen, (screen[centres][:, None, :] + near).reshape(-1, 2)])
+    points[vertices:][np.repeat(screen[centres, 0] <= int(rk.OUTSIDE_GUARD_BAND), 3)] = [int(rk.BEHIND_CAMERA), 0]
+    faces = vertices + np.arange(3 * triangles).reshape(-1, 3)
+    faces[5::97, 1] = len(points) + 3  # out of range
+    faces[9::89, 2] = -1
+    masks = wp.empty(-(-triangles // 64), dtype=wp.uint64)
+    wp.launch(busy_masks, dim=len(masks), inputs=[wp.array(faces.reshape(-1).astype(np.int32), dtype=wp.int32),
+                                                   wp.array(points.astype(np.int32), dtype=wp.vec2i), len(points), spp,
+                                                   width, height, masks])
+    busy = [(int(masks.numpy()[t // 64]) >> (t % 64)) & 1 for t in range(triangles)]
+    for t, face in enumerate(faces):
+        if face.min() < 0 or face.max() >= len(points):
+            assert busy[t] == 1
+            continue
+        q = points[face].astype(np.int64)
+        if np.any(q[:, 0] <= int(rk.OUTSIDE_GUARD_BAND)):
+            assert busy[t] == 1
+            continue
+        lo, hi = q.min(axis=0), q.max(axis=0)
+        if spp == 1:  # pixel k's sample at (k + 1/2) pixel
+            first, last = np.ceil((lo - pixel / 2) / pixel), np.floor((hi - pixel / 2) / pixel)
+        else:  # pixel k's samples anywhere in [k, k + 1] pixel
+            first, last = np.ceil(lo / pixel) - 1, np.floor(hi / pixel)
+        first, last = np.maximum(first, 0), np.minimum(last, [width - 1, height - 1])
+        assert busy[t] == int(np.all(first <= last)), (t, q)
+
+
+@wp.kernel(enable_backward=False)
 def project_all(positions: wp.array(dtype=wp.vec3), proj: rk.Projection, screen: wp.array(dtype=wp.vec2i),
                 depth_weights: wp.array(dtype=wp.float64)):
     rk.project_vertices(positions, proj.to_camera, proj.eye, proj.half_width, proj.half_height, proj.orthographic,
