@@ -260,8 +260,8 @@ _PROJECT_VERTICES = """
         const wp::int32 sx = (wp::int32)(xc * scale + offset) - shift;
         const wp::int32 sy = (wp::int32)(yc * scale + offset) - shift;
         const bool behind = z <= 0.0;
-        out[2 * i] = behind ? BEHIND : (inside ? sx : OUTSIDE);
-        out[2 * i + 1] = behind || !inside ? 0 : sy;
+        out[2 * (size_t)i] = behind ? BEHIND : (inside ? sx : OUTSIDE);
+        out[2 * (size_t)i + 1] = behind || !inside ? 0 : sy;
         weights[i] = parallel ? z : inverse_z;
     };
     const char* base = (const char*)positions.data;
@@ -758,11 +758,12 @@ _TRIANGLES_WITH_SAMPLES = """
         return count >= 64 ? ~(wp::uint64)0 : (((wp::uint64)1 << count) - 1);  // strided: all of them
     wp::uint8 busy[64];
     for (int k = 0; k < count; ++k) {
-        const wp::int32 i0 = corner[3 * (first + k)], i1 = corner[3 * (first + k) + 1], i2 = corner[3 * (first + k) + 2];
+        const size_t t = 3 * (size_t)(first + k);
+        const wp::int32 i0 = corner[t], i1 = corner[t + 1], i2 = corner[t + 2];
         const bool valid = (wp::uint32)i0 < n && (wp::uint32)i1 < n && (wp::uint32)i2 < n;
         const wp::int32 j0 = valid ? i0 : 0, j1 = valid ? i1 : 0, j2 = valid ? i2 : 0;
-        const wp::int32 x0 = q[2 * j0], y0 = q[2 * j0 + 1], x1 = q[2 * j1], y1 = q[2 * j1 + 1];
-        const wp::int32 x2 = q[2 * j2], y2 = q[2 * j2 + 1];
+        const wp::int32 x0 = q[2 * (size_t)j0], y0 = q[2 * (size_t)j0 + 1], x1 = q[2 * (size_t)j1];
+        const wp::int32 y1 = q[2 * (size_t)j1 + 1], x2 = q[2 * (size_t)j2], y2 = q[2 * (size_t)j2 + 1];
         const bool projected = x0 > OUTSIDE && x1 > OUTSIDE && x2 > OUTSIDE;
         const wp::int64 lx = x0 < x1 ? (x0 < x2 ? x0 : x2) : (x1 < x2 ? x1 : x2);
         const wp::int64 hx = x0 > x1 ? (x0 > x2 ? x0 : x2) : (x1 > x2 ? x1 : x2);
