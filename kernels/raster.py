@@ -956,7 +956,9 @@ CLUSTERS_OFF_SCREEN = wp.constant(12)
 CLUSTERS_DEFERRED = wp.constant(13)
 CLUSTERS_OCCLUDED = wp.constant(14)
 CLUSTERS_FACING_AWAY = wp.constant(15)
-SYNC_SLOTS = 16
+# whether this call draws in two passes (occlusion_pass_pays, decided by launch 0)
+OCCLUSION_PASS = wp.constant(16)
+SYNC_SLOTS = 17
 # Outcomes of binning: drawn (or drawing), an index out of range (nothing read through it), or
 # more triangle-tile pairs than the bins hold (in ``bin_total``; grow them and resume at FILL).
 BINNED = wp.constant(0)
@@ -1019,6 +1021,30 @@ DRAW_DEFERRED = wp.constant(4)
 # every sample (~1 ns each), testing a cluster saves ~25 ns per triangle it culls, and a few tenths
 # of the deferred triangles are culled where culling works at all (development measurements).
 SAMPLES_PER_DEFERRED_TRIANGLE = wp.constant(4)
+# Clusters sampled to estimate how many face away from the eye (occlusion_pass_pays).
+FACING_SAMPLE = wp.constant(256)
+
+
+@wp.func
+def occlusion_pass_pays(proj: Projection, cluster_lower: wp.array(dtype=wp.vec3),
+                        cluster_upper: wp.array(dtype=wp.vec3), cluster_axis: wp.array(dtype=wp.vec3), triangles: int,
+                        samples_count: wp.int64) -> bool:
+    """Whether drawing in two passes, the clusters facing away tested for occlusion, may pay:
+    whether those facing away (as faces_eye tells them apart, estimated from FACING_SAMPLE
+    clusters evenly spread) hold enough triangles to pay for the occlusion tiles, as the second
+    pass decides again on the true count. Otherwise that pass and its barrier cost more than
+    they save (a height field seen from above, a mesh of few triangles for the samples)."""
+    if wp.int64(triangles) * wp.int64(SAMPLES_PER_DEFERRED_TRIANGLE) < samples_count:
+        return False
+    clusters = cluster_lower.shape[0]
+    sampled = int(0)
+    away = int(0)
+    for cluster in range(0, clusters, wp.max(1, clusters / FACING_SAMPLE)):
+        sampled += 1
+        if not faces_eye(proj, cluster_lower[cluster], cluster_upper[cluster], cluster_axis[cluster]):
+            away += 1
+    return (wp.int64(away) * wp.int64(triangles) * wp.int64(SAMPLES_PER_DEFERRED_TRIANGLE)
+            >= wp.int64(sampled) * samples_count)
 
 
 @wp.func
@@ -1103,7 +1129,6 @@ def count_chunk(draw: int, chunk: int, positions: wp.array(dtype=wp.vec3), indic
 
 @wp.kernel
 def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after_binning: int, os_yield: wp.uint64,
-                        occlusion_pass: int,
                         positions: wp.array(dtype=wp.vec3),
                         indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
                         depth_weights: wp.array(dtype=wp.float64), cam: CameraData, proj: Projection,
@@ -1134,7 +1159,8 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     chunk's bad_indices set for a triangle with an index out of range (it is not read). With
     clusters (cluster_lower... nonempty) the chunks are drawn cluster by cluster (count_chunk),
     but for the clusters off screen or facing away from the eye where every triangle is flagged
-    for culling; with occlusion_pass, in two passes: first those facing the eye or not testable,
+    for culling; where occlusion_pass_pays (launch 0 decides it, in ``sync``), in two passes:
+    first those facing the eye or not testable,
     the others deferred (their rectangle and nearest depth kept in cluster_rect and
     cluster_nearest); then, once each launch has built its share of the occlusion tiles from the
     buffer (if enough triangles were deferred to pay for them), the deferred clusters not
@@ -1156,6 +1182,10 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
         project_vertices(positions, proj.to_camera, proj.eye, proj.half_width, proj.half_height, proj.orthographic,
                          wp.min(launch * vertices, vertex_count), wp.min((launch + 1) * vertices, vertex_count),
                          screen, depth_weights)
+        samples_count = wp.int64(out.shape[0]) * wp.int64(out.shape[1])
+        if launch == 0 and cluster_lower.shape[0] > 0:
+            if occlusion_pass_pays(proj, cluster_lower, cluster_upper, cluster_axis, triangles, samples_count):
+                sync[OCCLUSION_PASS] = 1
         # small triangles are drawn into the cleared buffer from projected vertices
         if not all_arrived(sync, BARRIER_PROJECTED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
             return
@@ -1163,7 +1193,7 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
         draw = DRAW_ALL
         if cluster_lower.shape[0] > 0:
             draw = DRAW_CULLED
-            if occlusion_pass != 0:
+            if sync[OCCLUSION_PASS] != 0:
                 passes = 2
                 draw = DRAW_FIRST
         for k in range(passes):
@@ -1174,7 +1204,6 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                     return
                 draw = DRAW_DEFERRED
                 queue = QUEUE_DEFERRED
-                samples_count = wp.int64(out.shape[0]) * wp.int64(out.shape[1])
                 deferred_triangles = wp.int64(sync[CLUSTERS_DEFERRED]) * wp.int64(CLUSTER_SIZE)
                 if deferred_triangles * wp.int64(SAMPLES_PER_DEFERRED_TRIANGLE) >= samples_count:
                     tile_rows = share(occlusion.shape[0], launches, 1)

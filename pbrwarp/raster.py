@@ -132,9 +132,6 @@ class Clusters:
     upper: wp.array
     axis: wp.array
     spread: wp.array
-    # every len // FACING_SAMPLE-th cluster's axis and box centre (float64 NumPy), for _occlusion_pays
-    sampled_axis: np.ndarray
-    sampled_centre: np.ndarray
 
     def __len__(self):
         return len(self.lower)
@@ -157,10 +154,7 @@ def triangle_clusters(positions: wp.array, indices: wp.array) -> Clusters:
     if count:
         wp.launch(ok.cluster_bounds, dim=count, device="cpu",
                   inputs=[positions, indices, triangles, lower, upper, axis, spread])
-    step = max(1, count // FACING_SAMPLE)
-    sampled_centre = (lower.numpy()[::step].astype(np.float64) + upper.numpy()[::step]) / 2
-    return Clusters(positions, indices, lower, upper, axis, spread, axis.numpy()[::step].astype(np.float64),
-                    sampled_centre)
+    return Clusters(positions, indices, lower, upper, axis, spread)
 
 
 _sample_cache: dict = {}
@@ -221,27 +215,6 @@ def projection(cam: CameraData, orthographic: bool = False) -> rk.Projection:
     # the sign of det(axes) (screen y points down)
     proj.back_facing_sign = -1 if det > 0 else 1
     return proj
-
-
-# Clusters sampled to estimate how many face away from the eye (see _occlusion_pays).
-FACING_SAMPLE = 256
-# Samples per deferred triangle at which the occlusion pass pays (kernels/raster.py's
-# SAMPLES_PER_DEFERRED_TRIANGLE decides again on the true count).
-SAMPLES_PER_DEFERRED_TRIANGLE = int(rk.SAMPLES_PER_DEFERRED_TRIANGLE)
-
-
-def _occlusion_pays(clusters: Clusters, triangles: int, samples: int, cam: CameraData, orthographic: bool) -> bool:
-    """Whether drawing in two passes, the clusters facing away from the eye tested for occlusion
-    (kernels/raster.py's DRAW_FIRST), may pay: whether the clusters facing away, estimated from a
-    sample of them as kernels/occlusion.py's faces_eye tells them apart, hold enough triangles
-    to pay for the occlusion tiles. Otherwise the second pass and its barrier cost more than it
-    saves (a heightfield seen from above, a mesh of few triangles for the samples)."""
-    if triangles * SAMPLES_PER_DEFERRED_TRIANGLE < samples:
-        return False
-    axis = clusters.sampled_axis
-    view = np.asarray(cam.forward, np.float64) if orthographic else clusters.sampled_centre - np.asarray(cam.eye)
-    facing_away = np.count_nonzero((axis * view).sum(axis=1) >= 0) / max(len(axis), 1)
-    return facing_away * triangles * SAMPLES_PER_DEFERRED_TRIANGLE >= samples
 
 
 def _check_sampling(width, height, spp, grid_m, grid_n, seed):
@@ -366,8 +339,6 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     occlusion_shape = ((math.ceil(height / OCCLUSION_TILE), math.ceil(width / OCCLUSION_TILE)) if cluster_count
                        else (1, 1))
     occlusion = _scratch_array(scratch, "occlusion", math.prod(occlusion_shape), wp.float32).reshape(occlusion_shape)
-    occlusion_pass = cluster_count > 0 and _occlusion_pays(clusters, triangles, height * width * spp, cam,
-                                                           orthographic)
     if cluster_count:
         cluster_arrays = [clusters.lower, clusters.upper, clusters.axis, clusters.spread]
     else:
@@ -379,8 +350,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
         def launch(k):
             try:
                 wp.launch(rk.visibility_pipeline, dim=1, device="cpu",
-                          inputs=[k, threads, first_stage, int(stop_after_binning), _os_yield_address(),
-                                  int(occlusion_pass), positions,
+                          inputs=[k, threads, first_stage, int(stop_after_binning), _os_yield_address(), positions,
                                   indices, vertices, screen, depth_weights, cam, proj, samples, spp, MIN_CHUNK,
                                   chunk_size, math.ceil(chunk_count / threads),
                                   triangles, tiles_x, _tile_stride(tiles), cull_back_faces, binned_count, binned_face,
