@@ -25,8 +25,8 @@ stay in that cell from its origin's projection alone. A ray whose cells cannot b
 
 import warp as wp
 
-from .projection import Projection, camera_coordinates, screen_point
-from .raster import clipped_rect, empty_rect, ray_triangle_intersection, triangle_corners
+from .projection import Projection, camera_coordinates, clamped_rect, empty_rect, screen_point
+from .raster import clipped_rect, ray_triangle_intersection, triangle_corners
 from .robust import RAY_FAR
 from .shadow_map import CUBE_FACES, cube_face
 
@@ -190,10 +190,7 @@ def cell_rect(proj: Projection, x_min: wp.float64, y_min: wp.float64, x_max: wp.
     y0 = int(wp.floor(wp.clamp(y_min - CELL_MARGIN, low, r)))
     x1 = int(wp.floor(wp.clamp(x_max + CELL_MARGIN, low, r)))
     y1 = int(wp.floor(wp.clamp(y_max + CELL_MARGIN, low, r)))
-    out = wp.vec4i(wp.max(x0, 0), wp.max(y0, 0), wp.min(x1, proj.width - 1), wp.min(y1, proj.height - 1))
-    if out[0] > out[2] or out[1] > out[3]:
-        return empty_rect()
-    return out
+    return clamped_rect(x0, y0, x1, y1, proj.width, proj.height)
 
 
 @wp.func

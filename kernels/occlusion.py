@@ -16,7 +16,7 @@ snapping of vertices, which decides each triangle's facing in the rasterizer.
 
 import warp as wp
 
-from .projection import Projection, camera_coordinates, screen_point
+from .projection import Projection, camera_coordinates, empty_rect, pixels_around, screen_point
 
 wp.set_module_options({"enable_backward": False})
 
@@ -238,22 +238,15 @@ def cluster_view(proj: Projection, lo: wp.vec3, hi: wp.vec3):
     rounding = DEPTH_ROUNDING * (wp.abs(m[2, 0]) * extent[0] + wp.abs(m[2, 1]) * extent[1]
                                  + wp.abs(m[2, 2]) * extent[2])
     if farthest < -rounding:
-        return wp.vec4i(0, 0, -1, -1), wp.float64(0.0)
+        return empty_rect(), wp.float64(0.0)
     nearest = nearest * (wp.float64(1.0) - DEPTH_MARGIN) - rounding
     if nearest <= wp.float64(0.0):
         # the box reaches the camera plane, where its projection is unbounded
         return wp.vec4i(0, 0, proj.width - 1, proj.height - 1), wp.float64(0.0)
-    # a pixel of margin for the rounding of the projection and the snapping of vertices; samples
-    # of pixel p lie in [p, p + 1]; clamped before the conversion to int
-    w = wp.float64(proj.width)
-    h = wp.float64(proj.height)
-    r = wp.vec4i(int(wp.floor(wp.clamp(x0, wp.float64(-2.0), w + wp.float64(2.0)))) - 1,
-                 int(wp.floor(wp.clamp(y0, wp.float64(-2.0), h + wp.float64(2.0)))) - 1,
-                 int(wp.floor(wp.clamp(x1, wp.float64(-2.0), w + wp.float64(2.0)))) + 1,
-                 int(wp.floor(wp.clamp(y1, wp.float64(-2.0), h + wp.float64(2.0)))) + 1)
-    r = wp.vec4i(wp.max(r[0], 0), wp.max(r[1], 0), wp.min(r[2], proj.width - 1), wp.min(r[3], proj.height - 1))
-    if r[0] > r[2] or r[1] > r[3]:
-        return wp.vec4i(0, 0, -1, -1), wp.float64(0.0)
+    # (the pixel of margin also covers the snapping of vertices, 1/8192 pixel)
+    r = pixels_around(proj, wp.vec4d(x0, y0, x1, y1))
+    if r[0] > r[2]:
+        return r, wp.float64(0.0)
     return r, nearest
 
 

@@ -1,5 +1,6 @@
-"""World to screen: the rasterizer's projection (kernels/raster.py), which its occlusion culling
-(kernels/occlusion.py) and the light buffers (kernels/light_buffer.py) share."""
+"""World to screen: the rasterizer's projection (kernels/raster.py) and its screen rectangles,
+which its occlusion culling (kernels/occlusion.py) and the light buffers (kernels/light_buffer.py)
+share."""
 
 import warp as wp
 
@@ -39,3 +40,31 @@ def screen_point(proj: Projection, c: wp.vec3d) -> wp.vec2d:
     inverse_z = wp.float64(1.0) / c[2]
     return wp.vec2d((c[0] * inverse_z + wp.float64(1.0)) * proj.half_width,
                     (wp.float64(1.0) - c[1] * inverse_z) * proj.half_height)
+
+
+@wp.func
+def empty_rect() -> wp.vec4i:
+    return wp.vec4i(0, 0, -1, -1)
+
+
+@wp.func
+def clamped_rect(x0: int, y0: int, x1: int, y1: int, width: int, height: int) -> wp.vec4i:
+    """Pixels [x0, x1] x [y0, y1] (inclusive) inside the image; empty_rect() if none."""
+    r = wp.vec4i(wp.max(x0, 0), wp.max(y0, 0), wp.min(x1, width - 1), wp.min(y1, height - 1))
+    if r[0] > r[2] or r[1] > r[3]:
+        return empty_rect()
+    return r
+
+
+@wp.func
+def pixels_around(proj: Projection, bounds: wp.vec4d) -> wp.vec4i:
+    """Pixels of the image whose samples (anywhere in [p, p + 1]) may lie within screen bounds
+    (min x, min y, max x, max y), with a pixel of margin for the rounding of the projection;
+    clamped before the conversion to int, so bounds may be huge or infinite."""
+    w = wp.float64(proj.width)
+    h = wp.float64(proj.height)
+    x0 = int(wp.floor(wp.clamp(bounds[0], wp.float64(-2.0), w + wp.float64(2.0)))) - 1
+    x1 = int(wp.floor(wp.clamp(bounds[2], wp.float64(-2.0), w + wp.float64(2.0)))) + 1
+    y0 = int(wp.floor(wp.clamp(bounds[1], wp.float64(-2.0), h + wp.float64(2.0)))) - 1
+    y1 = int(wp.floor(wp.clamp(bounds[3], wp.float64(-2.0), h + wp.float64(2.0)))) + 1
+    return clamped_rect(x0, y0, x1, y1, proj.width, proj.height)

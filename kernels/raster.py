@@ -27,7 +27,7 @@ away that the first pass does not hide.
 import warp as wp
 
 from .camera import CameraData, camera_ray_direction
-from .projection import Projection, camera_coordinates, screen_point
+from .projection import Projection, camera_coordinates, clamped_rect, empty_rect, pixels_around, screen_point
 from .sampling import multi_jittered_sample
 from .occlusion import (
     CLUSTER_SIZE,
@@ -300,20 +300,6 @@ def is_projected(q: wp.vec2i) -> bool:
 
 # ---------------------------------------------------------------------- screen rectangles
 @wp.func
-def empty_rect() -> wp.vec4i:
-    return wp.vec4i(0, 0, -1, -1)
-
-
-@wp.func
-def clamped_rect(x0: int, y0: int, x1: int, y1: int, width: int, height: int) -> wp.vec4i:
-    """Pixels [x0, x1] x [y0, y1] (inclusive) inside the image; empty_rect() if none."""
-    r = wp.vec4i(wp.max(x0, 0), wp.max(y0, 0), wp.min(x1, width - 1), wp.min(y1, height - 1))
-    if r[0] > r[2] or r[1] > r[3]:
-        return empty_rect()
-    return r
-
-
-@wp.func
 def sampled_pixel_range(lo: wp.int64, hi: wp.int64, spp: int) -> wp.vec2i:
     """First and last pixel with a sample in [lo, hi] (fixed point). With spp = 1 a pixel's sample
     is its centre; with more it lies anywhere in [p, p + 1] (float32 p + offset may round up)."""
@@ -397,14 +383,7 @@ def clipped_rect(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -> wp.
     bounds = include_vertex_and_edge(bounds, proj, c2, c0)
     if not (bounds[0] <= bounds[2]):
         return empty_rect()
-    # a pixel of margin for the rounding of the projection; clamped before the conversion to int
-    w = wp.float64(proj.width)
-    h = wp.float64(proj.height)
-    x0 = int(wp.floor(wp.clamp(bounds[0], wp.float64(-2.0), w + wp.float64(2.0)))) - 1
-    x1 = int(wp.floor(wp.clamp(bounds[2], wp.float64(-2.0), w + wp.float64(2.0)))) + 1
-    y0 = int(wp.floor(wp.clamp(bounds[1], wp.float64(-2.0), h + wp.float64(2.0)))) - 1
-    y1 = int(wp.floor(wp.clamp(bounds[3], wp.float64(-2.0), h + wp.float64(2.0)))) + 1
-    return clamped_rect(x0, y0, x1, y1, proj.width, proj.height)
+    return pixels_around(proj, bounds)
 
 
 # ---------------------------------------------------------------------- rasterization
