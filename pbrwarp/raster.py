@@ -145,8 +145,7 @@ def triangle_clusters(positions: wp.array, indices: wp.array) -> Clusters:
     if triangles:
         idx = indices.numpy()
         if idx.min() < 0 or idx.max() >= vertices:
-            raise InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], "
-                             f"{vertices} vertices")
+            raise _index_out_of_range(idx, vertices)
     count = math.ceil(triangles / CLUSTER_SIZE)
     lower, upper, axis = (wp.empty(count, dtype=wp.vec3, device="cpu") for _ in range(3))
     spread = wp.empty(count, dtype=wp.float32, device="cpu")
@@ -228,6 +227,10 @@ def _check_sampling(width, height, spp, grid_m, grid_n, seed):
         raise InputError(f"spp must be grid_m * grid_n >= 1, got spp={spp}, grid {grid_m}x{grid_n}")
     if not 0 <= seed < 2**31:
         raise InputError(f"seed must lie in [0, 2^31), got {seed}")
+
+
+def _index_out_of_range(idx: np.ndarray, vertices: int) -> InputError:
+    return InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], {vertices} vertices")
 
 
 def _check_geometry(positions, indices) -> tuple[int, int]:
@@ -366,9 +369,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     run(int(rk.START), split)
     outcome = int(sync.numpy()[int(rk.OUTCOME)])
     if outcome == int(rk.BAD_INDEX):
-        idx = indices.numpy()
-        raise InputError(f"triangle index out of range: indices span [{idx.min()}, {idx.max()}], "
-                         f"{vertices} vertices")
+        raise _index_out_of_range(indices.numpy(), vertices)
     t_binned = time.perf_counter()
     if outcome == int(rk.BINS_TOO_SMALL):
         total = int(bin_total.numpy()[0])
