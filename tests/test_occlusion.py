@@ -14,7 +14,8 @@ from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels import occlusion as ok
 from pbrwarp.meshes import ASSETS, bunny, icosphere
 from pbrwarp.raster import NO_TRIANGLE, CLUSTER_SIZE, projection, triangle_clusters, visibility_buffer
-from test_raster import GLTF, camera_data, mesh_geometry, random_cameras, scene_of
+from test_raster import (GLTF, camera_coordinates, camera_data, mesh_geometry, random_cameras, scene_of,
+                         screen_coordinates)
 
 
 def uploaded(scene):
@@ -90,18 +91,6 @@ def parallel_camera(direction, distance, half_extent, size, rng):
     cam.right, cam.up = wp.vec3(*right), wp.vec3(*np.cross(right, d))
     cam.width = cam.height = size
     return cam
-
-
-def camera_coordinates(cam, points):
-    axes = np.array([cam.right, cam.up, cam.forward], np.float64).T
-    return (points - np.array(cam.eye, np.float64)) @ np.linalg.inv(axes).T
-
-
-def screen_coordinates(cam, c, orthographic=False):
-    """Pixel (x, y) of camera coordinates c, the inverse of camera_ray_direction."""
-    if orthographic:
-        return (c[:, 0] + 1) * cam.width / 2, (1 - c[:, 1]) * cam.height / 2
-    return (c[:, 0] / c[:, 2] + 1) * cam.width / 2, (1 - c[:, 1] / c[:, 2]) * cam.height / 2
 
 
 def test_cluster_tests_are_conservative_against_float64_geometry():

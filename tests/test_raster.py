@@ -127,15 +127,26 @@ def random_cameras(scene, count, seed):
         yield pw.Camera.look_at(tuple(eye), tuple(target), up=tuple(rng.normal(size=3)), fov_y=float(rng.uniform(20, 100)))
 
 
+def camera_coordinates(cam, points):
+    """float64 camera coordinates (a, b, z) of world points: point - eye = a right + b up + z forward."""
+    axes = np.array([cam.right, cam.up, cam.forward], np.float64).T
+    return (np.asarray(points, np.float64) - np.array(cam.eye, np.float64)) @ np.linalg.inv(axes).T
+
+
+def screen_coordinates(cam, c, orthographic=False):
+    """Pixel (x, y) of camera coordinates c, the inverse of camera_ray_direction."""
+    if orthographic:
+        return (c[:, 0] + 1) * cam.width / 2, (1 - c[:, 1]) * cam.height / 2
+    return (c[:, 0] / c[:, 2] + 1) * cam.width / 2, (1 - c[:, 1] / c[:, 2]) * cam.height / 2
+
+
 def screen_edge_distance(geom, cam, face, x, y):
     """Pixels from (x, y) to the nearest edge line of ``face``'s projection; inf when the triangle
     reaches behind the camera (then both paths cast the same ray at it)."""
-    axes = np.array([cam.right, cam.up, cam.forward], np.float64).T
-    c = (geom.vertices[geom.faces[face]] - np.array(cam.eye, np.float64)) @ np.linalg.inv(axes).T
+    c = camera_coordinates(cam, geom.vertices[geom.faces[face]])
     if np.any(c[:, 2] <= 0):
         return math.inf
-    sx = (c[:, 0] / c[:, 2] + 1) * cam.width / 2
-    sy = (1 - c[:, 1] / c[:, 2]) * cam.height / 2
+    sx, sy = screen_coordinates(cam, c)
     distances = []
     for i in range(3):
         j = (i + 1) % 3
@@ -705,12 +716,10 @@ def test_vertex_projection_against_float64(orthographic):
                              np.array(cam.eye, np.float64) + beyond @ axes.T,
                              [[0.3, -0.2, 4.0]]]).astype(np.float32)  # the eye itself
     proj = projection(cam, orthographic)
-    c = (points.astype(np.float64) - np.array(cam.eye, np.float64)) @ np.linalg.inv(axes).T
+    c = camera_coordinates(cam, points)
     with np.errstate(divide="ignore", invalid="ignore"):
-        if orthographic:
-            x, y, weight = (c[:, 0] + 1) * 320, (1 - c[:, 1]) * 240, c[:, 2]
-        else:
-            x, y, weight = (c[:, 0] / c[:, 2] + 1) * 320, (1 - c[:, 1] / c[:, 2]) * 240, 1 / c[:, 2]
+        x, y = screen_coordinates(cam, c, orthographic)
+        weight = c[:, 2] if orthographic else 1 / c[:, 2]
     behind = c[:, 2] <= 0
     outside = ~behind & ~((np.abs(x) <= float(rk.GUARD_BAND)) & (np.abs(y) <= float(rk.GUARD_BAND)))
     assert behind.sum() > 100 and outside.sum() > 100
