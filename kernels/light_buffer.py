@@ -308,10 +308,50 @@ def behind_plane(n: wp.vec3d, n_sq: wp.float64, light_side: wp.float64, origin: 
     return height * height <= PLANE_TOLERANCE * PLANE_TOLERANCE * n_sq * wp.dot(offset, offset)
 
 
+@wp.struct
+class LightPlane:
+    """A triangle's plane as mark_clear_entries tests other triangles against it, for one light."""
+    normal: wp.vec3d
+    normal_sq: wp.float64
+    # the sign of the light's side of the plane; 0 where the triangle is degenerate or the light
+    # lies within LIGHT_SIDE_MARGIN of its plane (the triangle is then never clear)
+    light_side: wp.float64
+    # farness: no shadow ray origin on the triangle lies farther from the light
+    far: float
+
+
 @wp.func
-def mark_clear_entries(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), proj: Projection,
-                       e: int, cell_start: wp.array(dtype=wp.int32), cell_faces: wp.array(dtype=wp.int32),
-                       cell_near: wp.array(dtype=float), cell_clear: wp.array(dtype=wp.uint8)):
+def light_plane(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d) -> LightPlane:
+    """Triangle (p0, p1, p2)'s LightPlane for the light of view ``proj`` (any of its views)."""
+    plane = LightPlane()
+    plane.normal = wp.cross(p1 - p0, p2 - p0)
+    plane.normal_sq = wp.dot(plane.normal, plane.normal)
+    towards = towards_light(proj, p0)
+    side = wp.dot(plane.normal, towards)
+    plane.light_side = wp.float64(0.0)
+    if side * side > LIGHT_SIDE_MARGIN * LIGHT_SIDE_MARGIN * plane.normal_sq * wp.dot(towards, towards):
+        plane.light_side = wp.sign(side)
+    plane.far = farness(proj, p0, p1, p2)
+    return plane
+
+
+@wp.kernel
+def light_planes(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), proj: Projection,
+                 first: int, last: int, planes: wp.array(dtype=LightPlane)):
+    """The LightPlane of triangles first...last - 1 for the light of view ``proj``: computed once
+    per triangle, where mark_clear_entries would redo it in every cell listing the triangle."""
+    start = first + wp.tid() * ITEMS_PER_THREAD
+    for face in range(start, wp.min(start + ITEMS_PER_THREAD, last)):
+        c = triangle_corners(indices, face)
+        planes[face] = light_plane(proj, to_double(positions[c[0]]), to_double(positions[c[1]]),
+                                   to_double(positions[c[2]]))
+
+
+@wp.func
+def mark_clear_entries(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
+                       planes: wp.array(dtype=LightPlane), e: int, cell_start: wp.array(dtype=wp.int32),
+                       cell_faces: wp.array(dtype=wp.int32), cell_near: wp.array(dtype=float),
+                       cell_clear: wp.array(dtype=wp.uint8)):
     """Per entry of (sorted) cell e: whether its triangle is clear there. A shadow ray leaves the
     triangle's plane towards the light and stays on the light's side of it (the light lies
     LIGHT_SIDE_MARGIN off it); it can meet only triangles listed in its cell that lie nearer to the
@@ -320,22 +360,15 @@ def mark_clear_entries(positions: wp.array(dtype=wp.vec3), indices: wp.array(dty
     end = cell_start[e + 1]
     for k in range(begin, end):
         cell_clear[k] = wp.uint8(0)
-        c = triangle_corners(indices, cell_faces[k])
-        p0 = to_double(positions[c[0]])
-        p1 = to_double(positions[c[1]])
-        p2 = to_double(positions[c[2]])
-        n = wp.cross(p1 - p0, p2 - p0)
-        n_sq = wp.dot(n, n)
-        towards = towards_light(proj, p0)
-        light_side = wp.dot(n, towards)
-        if light_side * light_side <= LIGHT_SIDE_MARGIN * LIGHT_SIDE_MARGIN * n_sq * wp.dot(towards, towards):
-            continue  # degenerate, or the light (nearly) in its plane
-        light_side = wp.sign(light_side)
-        far = farness(proj, p0, p1, p2)
+        face = cell_faces[k]
+        plane = planes[face]
+        if plane.light_side == wp.float64(0.0):
+            continue
+        p0 = to_double(positions[indices[3 * face]])
         clear = bool(True)
         checked = int(0)
         for j in range(begin, end):
-            if cell_near[j] >= far or not clear:
+            if cell_near[j] >= plane.far or not clear:
                 break
             if j != k:
                 checked += 1
@@ -343,21 +376,23 @@ def mark_clear_entries(positions: wp.array(dtype=wp.vec3), indices: wp.array(dty
                 clear = checked <= MAX_CLEAR_CHECKS
                 for corner in range(3):
                     if clear:
-                        clear = behind_plane(n, n_sq, light_side, p0, to_double(positions[a[corner]]))
+                        clear = behind_plane(plane.normal, plane.normal_sq, plane.light_side, p0,
+                                             to_double(positions[a[corner]]))
         if clear:
             cell_clear[k] = wp.uint8(1)
 
 
 @wp.kernel
-def finish_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), proj: Projection,
-                 first_entry: int, cell_start: wp.array(dtype=wp.int32), cell_faces: wp.array(dtype=wp.int32),
+def finish_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
+                 planes: wp.array(dtype=LightPlane), width: int, first_entry: int,
+                 cell_start: wp.array(dtype=wp.int32), cell_faces: wp.array(dtype=wp.int32),
                  cell_near: wp.array(dtype=float), cell_clear: wp.array(dtype=wp.uint8)):
     """Each filled cell of one row of one view sorted, then its clear entries marked (a row per
-    launch index: Warp copies a kernel's arguments for every index)."""
-    row = first_entry + wp.tid() * proj.width
-    for e in range(row, row + proj.width):
+    launch index: Warp copies a kernel's arguments for every index); ``planes``: its light's."""
+    row = first_entry + wp.tid() * width
+    for e in range(row, row + width):
         sort_cell(e, cell_start, cell_faces, cell_near)
-        mark_clear_entries(positions, indices, proj, e, cell_start, cell_faces, cell_near, cell_clear)
+        mark_clear_entries(positions, indices, planes, e, cell_start, cell_faces, cell_near, cell_clear)
 
 
 # what spread_cells found of a triangle's shadow rays in a view

@@ -13,6 +13,7 @@ import functools
 import numpy as np
 import warp as wp
 
+from . import huge_pages
 from .errors import InputError
 from .parallel import run_all, thread_count
 from .raster import projection
@@ -56,7 +57,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
             scene.__dict__["_light_buffers"] = (positions, key, buffers, True)
         return buffers
     threads = thread_count(threads)
-    for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.finish_cells,
+    for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.light_planes, lb.finish_cells,
                    lb.mark_clear_triangles, lb.mark_clear_interiors):
         load_for_cpu(kernel)
     positions, indices = gpu.data.positions, gpu.data.indices
@@ -79,7 +80,9 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
         spans.append((len(views), len(light_projections)))
         views += light_projections
     cells = RESOLUTION * RESOLUTION
-    counts = wp.zeros(max(len(views), 1) * cells, dtype=wp.int32, device="cpu")
+    # the large arrays on huge pages: their first touch would fault once per 4 KiB page
+    counts = huge_pages.empty(max(len(views), 1) * cells, wp.int32)
+    counts.zero_()
 
     def count(v):
         wp.launch(lb.count_cells, dim=launch_threads(triangles), device="cpu",
@@ -97,34 +100,50 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
             spans[k] = (0, 0)
         else:
             kept += range(first, first + n)
-    start = np.zeros(per_cell.size + 1, np.int64)
-    np.cumsum(per_cell.reshape(-1), out=start[1:])
-    if start[-1] >= 2**31:
-        raise InputError(f"light buffers too large: {start[-1]} cell entries; use shadows='map'")
-    cell_start = wp.array(start.astype(np.int32), dtype=wp.int32, device="cpu")
-    cursors = wp.array(start[:-1].astype(np.int32), dtype=wp.int32, device="cpu")
-    entries = max(int(start[-1]), 1)
-    cell_faces = wp.empty(entries, dtype=wp.int32, device="cpu")
-    cell_near = wp.empty(entries, dtype=float, device="cpu")
-    cell_clear = wp.zeros(entries, dtype=wp.uint8, device="cpu")
+    total = int(per_cell.sum(dtype=np.int64))
+    if total >= 2**31:
+        raise InputError(f"light buffers too large: {total} cell entries; use shadows='map'")
+    cell_start = huge_pages.empty(per_cell.size + 1, wp.int32)
+    start = cell_start.numpy()  # a view
+    start[0] = 0
+    np.cumsum(per_cell.reshape(-1), dtype=np.int32, out=start[1:])  # in int32 (no overflow: total < 2^31)
+    cursors = huge_pages.empty(per_cell.size, wp.int32)
+    cursors.numpy()[:] = start[:-1]
+    entries = max(total, 1)
+    cell_faces = huge_pages.empty(entries, wp.int32)
+    cell_near = huge_pages.empty(entries, float)
+    cell_clear = huge_pages.empty(entries, wp.uint8)
+    cell_clear.zero_()
 
     def fill(v):
         wp.launch(lb.fill_cells, dim=launch_threads(triangles), device="cpu",
                   inputs=[positions, indices, views[v], v * cells, triangles, cursors, cell_faces, cell_near])
 
     run_all(fill, kept, threads)
-    # sorting lists and marking entries, and marking triangles, in blocks that spread every
-    # view's and every light's work over the threads (the mesh often fills one or two faces)
+    # per light: its triangles' planes, then its lists sorted and entries marked, and later the
+    # triangles marked, in blocks that spread every view's work over the threads (the mesh often
+    # fills one or two faces)
     blocks = WORK_BLOCKS_PER_THREAD * threads
     rows = -(-RESOLUTION // blocks)
+    per_block = -(-triangles // blocks)
+    planes = wp.empty(max(triangles, 1), dtype=lb.LightPlane, device="cpu")
+    for first, n in spans:
+        if n == 0:
+            continue
 
-    def finish(job):
-        v, row = job
-        wp.launch(lb.finish_cells, dim=min(rows, RESOLUTION - row), device="cpu",
-                  inputs=[positions, indices, views[v], v * cells + row * RESOLUTION, cell_start, cell_faces,
-                          cell_near, cell_clear])
+        def plane(start, view=views[first]):
+            count = min(per_block, triangles - start)
+            wp.launch(lb.light_planes, dim=launch_threads(count), device="cpu",
+                      inputs=[positions, indices, view, start, start + count, planes])
 
-    run_all(finish, [(v, row) for v in kept for row in range(0, RESOLUTION, rows)], threads)
+        def finish(job):
+            v, row = job
+            wp.launch(lb.finish_cells, dim=min(rows, RESOLUTION - row), device="cpu",
+                      inputs=[positions, indices, planes, RESOLUTION, v * cells + row * RESOLUTION, cell_start,
+                              cell_faces, cell_near, cell_clear])
+
+        run_all(plane, range(0, triangles, per_block), threads)
+        run_all(finish, [(v, row) for v in range(first, first + n) for row in range(0, RESOLUTION, rows)], threads)
     buffers = lb.LightBuffers()
     buffers.views = wp.array(views if views else [lb.Projection()], dtype=lb.Projection, device="cpu")
     buffers.view_cells_per_radian = wp.array([cells_per_radian(view) for view in views] or [0.0], dtype=wp.float64,
