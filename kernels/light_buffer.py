@@ -390,6 +390,8 @@ def finish_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.
     """Each filled cell of one row of one view sorted, then its clear entries marked (a row per
     launch index: Warp copies a kernel's arguments for every index); ``planes``: its light's."""
     row = first_entry + wp.tid() * width
+    if cell_start[row] == cell_start[row + width]:
+        return  # an empty row
     for e in range(row, row + width):
         sort_cell(e, cell_start, cell_faces, cell_near)
         mark_clear_entries(positions, indices, planes, e, cell_start, cell_faces, cell_near, cell_clear)

@@ -90,17 +90,19 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
 
     run_all(count, range(len(views)), threads)
     per_cell = counts.numpy().reshape(-1, cells)
+    view_entries = per_cell.sum(axis=1, dtype=np.int64)
     kept = []
     for k, (first, n) in enumerate(spans):
         # a light whose lists would outgrow the budget (huge or degenerate geometry seen edge-on)
         # leaves its shadow rays to the BVH
         budget = MAX_ENTRIES_PER_TRIANGLE * triangles + MAX_ENTRIES_PER_CELL * n * cells
-        if n and per_cell[first:first + n].sum(dtype=np.int64) > budget:
+        if n and view_entries[first:first + n].sum() > budget:
             per_cell[first:first + n] = 0
+            view_entries[first:first + n] = 0
             spans[k] = (0, 0)
         else:
             kept += range(first, first + n)
-    total = int(per_cell.sum(dtype=np.int64))
+    total = int(view_entries.sum())
     if total >= 2**31:
         raise InputError(f"light buffers too large: {total} cell entries; use shadows='map'")
     cell_start = huge_pages.empty(per_cell.size + 1, wp.int32)
@@ -119,7 +121,8 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
         wp.launch(lb.fill_cells, dim=launch_threads(triangles), device="cpu",
                   inputs=[positions, indices, views[v], v * cells, triangles, cursors, cell_faces, cell_near])
 
-    run_all(fill, kept, threads)
+    # views no triangle is seen in (often half of a point light's cube) need no more work
+    run_all(fill, [v for v in kept if view_entries[v]], threads)
     # per light: its triangles' planes, then its lists sorted and entries marked, and later the
     # triangles marked, in blocks that spread every view's work over the threads (the mesh often
     # fills one or two faces)
@@ -142,8 +145,13 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
                       inputs=[positions, indices, planes, RESOLUTION, v * cells + row * RESOLUTION, cell_start,
                               cell_faces, cell_near, cell_clear])
 
+        def filled(v, row):
+            block = v * cells + row * RESOLUTION
+            return start[min(block + rows * RESOLUTION, (v + 1) * cells)] > start[block]
+
         run_all(plane, range(0, triangles, per_block), threads)
-        run_all(finish, [(v, row) for v in range(first, first + n) for row in range(0, RESOLUTION, rows)], threads)
+        run_all(finish, [(v, row) for v in range(first, first + n) for row in range(0, RESOLUTION, rows)
+                         if filled(v, row)], threads)
     buffers = lb.LightBuffers()
     buffers.views = wp.array(views if views else [lb.Projection()], dtype=lb.Projection, device="cpu")
     buffers.view_cells_per_radian = wp.array([cells_per_radian(view) for view in views] or [0.0], dtype=wp.float64,
