@@ -10,13 +10,17 @@ the albedo splits as Karis' DFG table does:
 so two numbers per (mu = n.v, roughness) serve every material.
 """
 
+from concurrent.futures import ThreadPoolExecutor
 import functools
+import os
+import threading
 from typing import NamedTuple
 
 import numpy as np
 import warp as wp
 
 from .brdf import D_GGX, distribution_for, visibility_for
+from .loading import CPU_BLOCK_DIM, load_for_cpu
 
 wp.set_module_options({"enable_backward": False})
 
@@ -67,8 +71,9 @@ def albedo_kernel(distribution: str, geometry: str):
     ndf = distribution_for(distribution)
 
     @wp.kernel(enable_backward=False, module="unique")
-    def integrate(samples: int, shape: int, out: wp.array3d(dtype=float)):
-        i, j = wp.tid()
+    def integrate(samples: int, shape: int, first_row: int, out: wp.array3d(dtype=float)):
+        row, j = wp.tid()
+        i = first_row + row
         size = out.shape[0]
         n_dot_v = (float(i) + 0.5) / float(size)
         roughness = float(j) / float(size - 1)
@@ -124,15 +129,51 @@ def interpolate_rows(table: np.ndarray, mu: np.ndarray) -> np.ndarray:
     return table[i0] * (1.0 - f) + table[i0 + 1] * f
 
 
+def integrated_albedo(distribution: str, geometry: str, fresnel: str, cache_dir: str | None = None) -> np.ndarray:
+    """The integrating kernel's (SIZE, SIZE, 2) float32 output for a rung triple. Kept in
+    ``cache_dir`` (default: Warp's kernel cache directory), named by the kernel's module hash
+    (which covers its code and every function it calls) and its inputs, since it costs ~0.5 s of
+    one core per process otherwise; computed in row bands on every core where no valid copy is
+    there."""
+    size = ALBEDO_TABLE_SIZE
+    kernel = albedo_kernel(distribution, geometry)
+    shape = FRESNEL_SHAPES[fresnel]
+    wp.init()
+    key = f"{kernel.module.get_module_hash(CPU_BLOCK_DIM).hex()[:16]}_{shape}_{size}_{ALBEDO_SAMPLES}"
+    path = os.path.join(cache_dir or wp.config.kernel_cache_dir or "", f"pbrwarp_albedo_{key}.npy")
+    try:
+        kept = np.load(path, allow_pickle=False)
+        if kept.shape == (size, size, 2) and kept.dtype == np.float32 and np.all(np.isfinite(kept)):
+            return kept
+    except (OSError, ValueError):
+        pass  # absent, unreadable or damaged: computed again
+    out = wp.zeros((size, size, 2), dtype=float, device="cpu")
+    workers = min(os.cpu_count() or 1, size)
+    rows = -(-size // workers)
+
+    def band(first_row):
+        wp.launch(kernel, dim=(min(rows, size - first_row), size), device="cpu",
+                  inputs=[ALBEDO_SAMPLES, shape, first_row, out])
+
+    load_for_cpu(kernel)
+    with ThreadPoolExecutor(workers) as pool:
+        list(pool.map(band, range(0, size, rows)))
+    raw = out.numpy()
+    try:  # written whole under another name, then renamed: readers never see part of it
+        partial = f"{path}.{os.getpid()}.{threading.get_ident()}.tmp"
+        with open(partial, "wb") as file:
+            np.save(file, raw, allow_pickle=False)
+        os.replace(partial, path)
+    except OSError:
+        pass  # a read-only cache: computed again next time
+    return raw
+
+
 @functools.cache
 def albedo_tables(distribution: str, geometry: str, fresnel: str) -> AlbedoTables:
-    """The tables of a rung triple; computed once per process (about 0.2 s plus the kernel's first
-    compile, which Warp caches on disk)."""
+    """The tables of a rung triple; computed once per process from integrated_albedo."""
     size = ALBEDO_TABLE_SIZE
-    out = wp.zeros((size, size, 2), dtype=float, device="cpu")
-    wp.launch(albedo_kernel(distribution, geometry), dim=(size, size), device="cpu",
-              inputs=[ALBEDO_SAMPLES, FRESNEL_SHAPES[fresnel], out])
-    raw = out.numpy().astype(np.float64)
+    raw = integrated_albedo(distribution, geometry, fresnel).astype(np.float64)
     e1 = np.clip(raw[..., 0], 1e-3, 1.0)
     ew = np.clip(raw[..., 1], 0.0, e1)
     mu = (np.arange(AVERAGE_POINTS) + 0.5) / AVERAGE_POINTS

@@ -135,3 +135,37 @@ def test_multiscatter_compensation_brings_white_metal_to_one():
             assert abs(est - 1.0) <= 0.03 + 4 * err, (roughness, cos_view, est)
     lossy, _ = directional_albedo(1.0, 1.0, 1.0, kernel=single)
     assert lossy < 0.8  # what the compensation restored
+
+
+def test_albedo_integration_is_kept_on_disk_and_recomputed_where_the_copy_is_damaged(tmp_path):
+    """integrated_albedo: the banded launches give the numbers one launch over the whole table
+    gives; the copy it keeps is loaded back unchanged; a damaged copy (not an array, cut short,
+    of another shape, holding NaN) is recomputed and replaced; a directory it cannot write to
+    only costs the computation."""
+    from pbrwarp.kernels.energy import (ALBEDO_SAMPLES, ALBEDO_TABLE_SIZE, FRESNEL_SHAPES, albedo_kernel,
+                                        integrated_albedo)
+
+    def integrate(cache_dir=tmp_path):
+        return integrated_albedo("ggx", "schlick_ggx", "schlick", cache_dir=str(cache_dir))
+
+    size = ALBEDO_TABLE_SIZE
+    whole = wp.zeros((size, size, 2), dtype=float, device="cpu")
+    wp.launch(albedo_kernel("ggx", "schlick_ggx"), dim=(size, size), device="cpu",
+              inputs=[ALBEDO_SAMPLES, FRESNEL_SHAPES["schlick"], 0, whole])
+    computed = integrate()
+    assert np.array_equal(computed, whole.numpy())
+    (kept,) = tmp_path.glob("pbrwarp_albedo_*.npy")
+    assert not list(tmp_path.glob("*.tmp"))
+    assert np.array_equal(integrate(), computed)
+    valid = kept.read_bytes()
+    nan_table = computed.copy()
+    nan_table[3, 4, 1] = np.nan
+    for damage in (b"not an array", valid[: len(valid) // 2]):
+        kept.write_bytes(damage)
+        assert np.array_equal(integrate(), computed)
+        assert kept.read_bytes() == valid
+    for wrong in (computed[:-1], nan_table):
+        np.save(kept, wrong)
+        assert np.array_equal(integrate(), computed)
+        assert kept.read_bytes() == valid
+    assert np.array_equal(integrate(cache_dir=tmp_path / "missing" / "directory"), computed)
