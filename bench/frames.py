@@ -10,14 +10,20 @@ after a light or the geometry moved), by maps reused from the previous frame (a 
 and by maps rendered anew, and without shadows. Embree: Open3D's RaycastingScene.cast_rays on the same
 primary rays (when open3d is installed), the issue's yardstick: a full shaded frame with
 ray-traced shadows should take no longer than that one pass. Medians of --repeats rounds after a
-warm-up round, every variant and the Embree pass timed in turn within each round. Writes bench/results/frames.{md,json}.
+warm-up round, every variant and the Embree pass timed in turn within each round. Also the first
+frame of a new Python process (pw.render with default options, the scene already built, kernels
+and albedo tables in the disk cache: upload, light buffers, kernel loading and all), the median of
+--repeats processes. Writes bench/results/frames.{md,json}.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
+import subprocess
 import sys
+import time
 
 import numpy as np
 import trimesh
@@ -88,6 +94,17 @@ def frame(scene, camera, size, visibility, shadows):
     return render_one
 
 
+def first_frame_seconds(scene_index: int, size: int) -> float:
+    """Seconds of a new process's first pw.render (default options) of scene ``scene_index``."""
+    code = (f"import sys; sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r}); import time; "
+            "import warp as wp; wp.config.quiet = True; import pbrwarp as pw; import frames; "
+            f"scene, camera = frames.scene_on_floor(frames.meshes()[{scene_index}][1]); t = time.perf_counter(); "
+            f"pw.render(scene, camera, width={size}, height={size}, progress=False); "
+            "print(time.perf_counter() - t)")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return float(result.stdout.strip().splitlines()[-1])
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
@@ -95,7 +112,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING
     rows = []
-    for name, mesh in meshes():
+    for index, (name, mesh) in enumerate(meshes()):
         scene, camera = scene_on_floor(mesh)
         variants = {f"{visibility}, shadows {shadows or 'off'}": frame(scene, camera, args.size, visibility, shadows)
                     for visibility, shadows in VARIANTS}
@@ -106,9 +123,12 @@ def main(argv=None):
         row = {"scene": name, "embree_ms": None}
         row.update({("embree_ms" if key == "embree" else key): 1e3 * seconds
                     for key, seconds in interleaved_medians(variants, args.repeats).items()})
+        first_frame_seconds(index, args.size)  # caches whatever the in-process rounds did not
+        row["first frame, new process"] = 1e3 * statistics.median(
+            first_frame_seconds(index, args.size) for _ in range(args.repeats))
         rows.append(row)
         print(row, file=sys.stderr)
-    keys = [f"{v}, shadows {s or 'off'}" for v, s in VARIANTS]
+    keys = [f"{v}, shadows {s or 'off'}" for v, s in VARIANTS] + ["first frame, new process"]
     lines = [f"| scene ({args.size}², 1 point light) | " + " | ".join(f"{k} ms" for k in keys) + " | Embree primary pass ms |",
              "|---|" + "---|" * (len(keys) + 1)]
     for r in rows:
@@ -120,7 +140,9 @@ def main(argv=None):
               "they were first reused), \"rays rebuilt\": built for this frame (six 512² cube faces of "
               "triangle lists for the point light, no interior marks); \"map reused\": the maps rendered "
               "for an earlier frame serve this one; \"map rebuilt\": rendered for this frame, six 1024² cube "
-              "faces for the point light."]
+              "faces for the point light. \"first frame, new process\": pw.render with default options in a "
+              "fresh Python process, the scene built and the kernels and albedo tables in the disk cache (the "
+              "mesh's upload, its light buffers and the kernels' loading included), median of as many processes."]
     command = command_line(ap, args)
     write_results("frames", command, {"rows": rows}, "\n".join(lines) + "\n")
 
