@@ -38,6 +38,33 @@ def test_editing_camera_lights_and_factors_reuses_the_kernel():
     assert not np.allclose(first.rgb, second.rgb)  # the edits took effect
 
 
+def test_the_upload_is_reused_until_a_material_or_light_changes():
+    """upload keeps the scene's rows while nothing changed, and an edit of any material or light
+    field takes effect in the next frame: doubling the light's intensity doubles every pixel
+    (exactly: radiance is linear in it, and a factor of 2 rounds nothing), and undoing the edits
+    gives the first frame back bit for bit."""
+    from pbrwarp.gpu_scene import upload
+
+    material = pw.Material(base_color=(0.5, 0.5, 0.5), roughness=0.5)
+    scene = scene_with(material)
+    cam = pw.Camera.look_at(eye=(0, 0, 3), target=(0, 0, 0))
+    assert upload(scene) is upload(scene)
+    first = pw.render(scene, cam, width=24, height=24, progress=False).rgb
+    scene.lights[0].intensity = 40.0
+    doubled = pw.render(scene, cam, width=24, height=24, progress=False).rgb
+    assert np.array_equal(doubled, 2.0 * first) and np.any(first > 0)
+    scene.lights[0].intensity = 20.0
+    for edit, value in (("roughness", 0.2), ("metallic", 1.0), ("base_color", (0.9, 0.1, 0.1, 1.0)),
+                        ("double_sided", False)):
+        kept = getattr(material, edit)
+        setattr(material, edit, value)
+        edited = pw.render(scene, cam, width=24, height=24, progress=False).rgb
+        setattr(material, edit, kept)
+        if edit != "double_sided":  # a closed sphere seen from outside looks the same single-sided
+            assert not np.array_equal(edited, first), edit
+    assert np.array_equal(pw.render(scene, cam, width=24, height=24, progress=False).rgb, first)
+
+
 def test_a_new_process_loads_kernels_from_the_disk_cache():
     script = textwrap.dedent("""
         import warp as wp
