@@ -61,13 +61,24 @@ class _Scratch(threading.local):
 _scratch = _Scratch()
 
 
-def _scratch_array(arrays: dict, kind: str, length: int, dtype) -> wp.array:
-    """A 1-D array of ``length`` (at least 1) elements of ``dtype``, reused across calls: arrays
-    is one thread's _scratch.arrays."""
-    array = arrays.get(kind)
-    if array is None or len(array) < length:
-        array = arrays[kind] = wp.empty(max(length, 1), dtype=dtype, device="cpu")
-    return array[:max(length, 1)]
+def _scratch_array(arrays: dict, kind: str, shape, dtype, zeroed: bool = False) -> wp.array:
+    """An array of ``shape`` (a length or a tuple; every extent at least 1) of ``dtype``, reused
+    across calls, zeroed if asked: arrays is one thread's _scratch.arrays. The last view of each
+    kind is kept too, since making one costs more than the small arrays' whole use."""
+    shape = tuple(max(int(n), 1) for n in ((shape,) if isinstance(shape, (int, np.integer)) else shape))
+    last = arrays.get((kind, "view"))
+    if last is not None and last[0] == shape:
+        view = last[1]
+    else:
+        size = math.prod(shape)
+        base = arrays.get(kind)
+        if base is None or len(base) < size:
+            base = arrays[kind] = wp.empty(size, dtype=dtype, device="cpu")
+        view = base[:size] if len(shape) == 1 else base[:size].reshape(shape)
+        arrays[(kind, "view")] = (shape, view)
+    if zeroed:
+        view.zero_()
+    return view
 
 
 # Cost models for choosing between rasterizing and ray casting primary visibility, fitted on 2
@@ -329,19 +340,19 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     bins = scratch.get("bins")
     if bins is None:
         bins = scratch["bins"] = wp.empty(max(triangles, tiles), dtype=wp.int32, device="cpu")
-    binned_count = wp.zeros(chunk_count, dtype=wp.int32, device="cpu")
-    tile_counts = wp.zeros((chunk_count, tiles), dtype=wp.int32, device="cpu")
-    bad_indices = wp.zeros(chunk_count, dtype=wp.int32, device="cpu")
-    cursors = wp.empty(tile_counts.shape, dtype=wp.int32, device="cpu")
-    bin_start = wp.empty(tiles + 1, dtype=wp.int32, device="cpu")
-    bin_total = wp.zeros(1, dtype=wp.int64, device="cpu")
-    sync = wp.zeros(rk.SYNC_SLOTS, dtype=wp.int32, device="cpu")
+    binned_count = _scratch_array(scratch, "binned_count", chunk_count, wp.int32, zeroed=True)
+    tile_counts = _scratch_array(scratch, "tile_counts", (chunk_count, tiles), wp.int32, zeroed=True)
+    bad_indices = _scratch_array(scratch, "bad_indices", chunk_count, wp.int32, zeroed=True)
+    cursors = _scratch_array(scratch, "cursors", (chunk_count, tiles), wp.int32)
+    bin_start = _scratch_array(scratch, "bin_start", tiles + 1, wp.int32)
+    bin_total = _scratch_array(scratch, "bin_total", 1, wp.int64, zeroed=True)
+    sync = _scratch_array(scratch, "sync", int(rk.SYNC_SLOTS), wp.int32, zeroed=True)
     cluster_count = len(clusters) if clusters is not None else 0
     cluster_rect = _scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i)
     cluster_nearest = _scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64)
     occlusion_shape = ((math.ceil(height / OCCLUSION_TILE), math.ceil(width / OCCLUSION_TILE)) if cluster_count
                        else (1, 1))
-    occlusion = _scratch_array(scratch, "occlusion", math.prod(occlusion_shape), wp.float32).reshape(occlusion_shape)
+    occlusion = _scratch_array(scratch, "occlusion", occlusion_shape, wp.float32)
     if cluster_count:
         cluster_arrays = [clusters.lower, clusters.upper, clusters.axis, clusters.spread]
     else:
