@@ -253,7 +253,7 @@ def _content_key(value):
     sequences and arrays by value, textures by identity, as the texel cache keys them)."""
     if isinstance(value, Texture):
         return id(value)
-    if isinstance(value, Material) or hasattr(value, "__dataclass_fields__"):
+    if hasattr(value, "__dataclass_fields__"):  # a Material, a light
         return tuple(_content_key(v) for v in vars(value).values())
     if isinstance(value, (tuple, list)):
         return tuple(_content_key(v) for v in value)

@@ -128,16 +128,16 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     # fills one or two faces)
     blocks = WORK_BLOCKS_PER_THREAD * threads
     rows = -(-RESOLUTION // blocks)
-    per_block = -(-triangles // blocks)
+    per_block = max(-(-triangles // blocks), 1)
     planes = wp.empty(max(triangles, 1), dtype=lb.LightPlane, device="cpu")
     for first, n in spans:
         if n == 0:
             continue
 
-        def plane(start, view=views[first]):
-            count = min(per_block, triangles - start)
+        def plane(first_triangle, view=views[first]):
+            count = min(per_block, triangles - first_triangle)
             wp.launch(lb.light_planes, dim=launch_threads(count), device="cpu",
-                      inputs=[positions, indices, view, start, start + count, planes])
+                      inputs=[positions, indices, view, first_triangle, first_triangle + count, planes])
 
         def finish(job):
             v, row = job
