@@ -573,6 +573,37 @@ def test_calls_from_several_python_threads_take_turns_and_agree():
             np.testing.assert_array_equal(buffer, alone[(k + i) % 4])
 
 
+def test_a_call_does_not_depend_on_what_earlier_calls_left_in_the_threads_scratch():
+    """visibility_buffer keeps its working arrays per calling thread: calls in turn on one thread,
+    with meshes, image sizes, sample counts, thread counts and clusters changing from call to
+    call (the arrays grow, shrink back and keep views), give the buffers that the same calls give
+    each on a fresh thread, whose scratch is empty."""
+    import threading
+    from pbrwarp.raster import triangle_clusters
+
+    small, large = Geometry(scene_of(icosphere(2))), Geometry(scene_of(icosphere(5)))
+    calls = []
+    for k, (geom, width, height, spp, threads, clustered) in enumerate([
+            (large, 160, 120, 1, 2, True), (small, 48, 40, 4, 1, False), (large, 64, 200, 1, 3, False),
+            (small, 200, 150, 1, 2, True), (large, 160, 120, 1, 2, True), (small, 48, 40, 4, 2, True)]):
+        camera = list(random_cameras(scene_of(icosphere(2)), 6, seed=11))[k]
+        clusters = triangle_clusters(geom.positions, geom.indices) if clustered else None
+        calls.append((geom, camera_data(camera, width, height), spp, threads, clusters))
+
+    def draw(geom, cam, spp, threads, clusters):
+        grid_m, grid_n = _stratification_grid(spp)
+        return visibility_buffer(geom.positions, geom.indices, cam, spp, grid_m, grid_n, 3, threads,
+                                 clusters=clusters).numpy().copy()
+
+    in_turn = [draw(*call) for call in calls]
+    for call, buffer in zip(calls, in_turn):
+        fresh = []
+        worker = threading.Thread(target=lambda call=call: fresh.append(draw(*call)))
+        worker.start()
+        worker.join()
+        np.testing.assert_array_equal(buffer, fresh[0])
+
+
 def test_back_face_culling_drops_exactly_the_faces_turned_away():
     corners = [pixel_to_plane(10, 10), pixel_to_plane(20, 50), pixel_to_plane(50, 12)]
     geom = mesh_geometry(corners, [[0, 1, 2]])
