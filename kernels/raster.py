@@ -937,7 +937,11 @@ CLUSTERS_OCCLUDED = wp.constant(14)
 CLUSTERS_FACING_AWAY = wp.constant(15)
 # whether this call draws in two passes (occlusion_pass_pays, decided by launch 0)
 OCCLUSION_PASS = wp.constant(16)
-SYNC_SLOTS = 17
+# the queue of the first stage's pieces (rows to clear, vertices to project)
+QUEUE_START = wp.constant(17)
+SYNC_SLOTS = 18
+# Pieces of the first stage per launch.
+START_PIECES_PER_LAUNCH = wp.constant(8)
 # Outcomes of binning: drawn (or drawing), an index out of range (nothing read through it), or
 # more triangle-tile pairs than the bins hold (in ``bin_total``; grow them and resume at FILL).
 BINNED = wp.constant(0)
@@ -951,9 +955,9 @@ FILL = wp.constant(1)
 
 
 @wp.func_native("""
-    __atomic_add_fetch(sync.data + slot, 1, __ATOMIC_ACQ_REL);
+    __atomic_add_fetch(sync.data + slot, amount, __ATOMIC_ACQ_REL);
     int spins = 0;
-    while (__atomic_load_n(sync.data + slot, __ATOMIC_ACQUIRE) < launches) {
+    while (__atomic_load_n(sync.data + slot, __ATOMIC_ACQUIRE) < total) {
         if (__atomic_load_n(sync.data + aborted, __ATOMIC_ACQUIRE) != 0) return false;
 #if defined(__x86_64__) || defined(__i386__)
         __builtin_ia32_pause();
@@ -966,19 +970,26 @@ FILL = wp.constant(1)
     }
     return true;
     """)
-def all_arrived(sync: wp.array(dtype=wp.int32), slot: int, launches: int, aborted: int,
-                spins_before_yield: int, os_yield: wp.uint64) -> bool:
-    """A barrier of the call's launches, which run side by side on a thread pool: arrives at
-    counter ``slot`` and spins until all ``launches`` have (what each wrote before is then
-    visible to all); False if the call was aborted meanwhile. After every spins_before_yield
-    spins (tens of microseconds) it calls ``os_yield`` (the address of the C library's
-    sched_yield; 0: never), lest a launch waiting for another that is not running (more threads
-    than cores, or cores taken by other processes) hold the core that one needs. Spinning
+def all_done(sync: wp.array(dtype=wp.int32), slot: int, amount: int, total: int, aborted: int,
+             spins_before_yield: int, os_yield: wp.uint64) -> bool:
+    """A barrier of the call's launches, which run side by side on a thread pool: adds ``amount``
+    (the work this launch did) to counter ``slot`` and spins until it reaches ``total`` (what each
+    wrote before is then visible to all); False if the call was aborted meanwhile. After every
+    spins_before_yield spins (tens of microseconds) it calls ``os_yield`` (the address of the C
+    library's sched_yield; 0: never), lest a launch waiting for another that is not running (more
+    threads than cores, or cores taken by other processes) hold the core that one needs. Spinning
     rather than returning to Python between stages: a Python barrier's wake-ups, and the GIL
     passed back and forth for each stage's launch, cost ~1.5 ms of a call on two threads
     (development measurement, nothing to draw at 512²: 2.6-3.6 ms on two threads against
     1.1-2.5 on one)."""
     ...
+
+
+@wp.func
+def all_arrived(sync: wp.array(dtype=wp.int32), slot: int, launches: int, aborted: int, spins_before_yield: int,
+                os_yield: wp.uint64) -> bool:
+    """all_done of one unit per launch: a barrier that every launch must reach."""
+    return all_done(sync, slot, 1, launches, aborted, spins_before_yield, os_yield)
 
 
 @wp.func
@@ -1127,8 +1138,8 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     (``launch`` = 0, 1, ...) side by side, which meet at spinning barriers (all_arrived) between
     stages.
 
-    From START: this launch's share of the buffer's rows cleared and of the vertices projected;
-    then chunks of chunk_size triangles taken from a queue shared by every launch, ticket t
+    From START: the buffer's rows cleared and the vertices projected, in pieces taken from a
+    queue (launch 0 first decides on the occlusion pass), until all are done (all_done); then chunks of chunk_size triangles taken from a queue shared by every launch, ticket t
     naming chunk (t mod launches) chunk_stride + t / launches, so that launches running side by
     side draw chunks far apart in the mesh (and mostly apart on screen) rather than neighbours:
     small triangles drawn into the buffer at once (atomically, as another launch may draw the same
@@ -1154,19 +1165,36 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     barrier, queues and outcome before resuming there); ``os_yield`` is all_arrived's.
     """
     if first_stage == START:
-        rows = share(proj.height, launches, 1)
-        for row in range(launch * rows, wp.min((launch + 1) * rows, proj.height)):
-            clear_row_span(out, row, 0, out.shape[1])
-        vertices = share(vertex_count, launches, min_vertex_share)
-        project_vertices(positions, proj.to_camera, proj.eye, proj.half_width, proj.half_height, proj.orthographic,
-                         wp.min(launch * vertices, vertex_count), wp.min((launch + 1) * vertices, vertex_count),
-                         screen, depth_weights)
         samples_count = wp.int64(out.shape[0]) * wp.int64(out.shape[1])
-        if launch == 0 and cluster_lower.shape[0] > 0:
-            if occlusion_pass_pays(proj, cluster_lower, cluster_upper, cluster_axis, triangles, samples_count):
-                sync[OCCLUSION_PASS] = 1
+        done = int(0)
+        if launch == 0:
+            # one unit of the stage's work, done before launch 0 takes any other
+            if cluster_lower.shape[0] > 0:
+                if occlusion_pass_pays(proj, cluster_lower, cluster_upper, cluster_axis, triangles, samples_count):
+                    sync[OCCLUSION_PASS] = 1
+            done = 1
+        # the buffer's rows cleared and the vertices projected in pieces taken from a queue: a
+        # launch that starts late (a pool thread's wake-up) finds its share done by the others
+        pieces = launches * START_PIECES_PER_LAUNCH
+        rows = share(proj.height, pieces, 1)
+        row_pieces = (proj.height + rows - 1) / rows
+        vertices = share(vertex_count, pieces, min_vertex_share)
+        vertex_pieces = (vertex_count + vertices - 1) / vertices
+        piece = take_next_item_from(sync, QUEUE_START)
+        while piece < row_pieces + vertex_pieces:
+            if piece < row_pieces:
+                for row in range(piece * rows, wp.min((piece + 1) * rows, proj.height)):
+                    clear_row_span(out, row, 0, out.shape[1])
+            else:
+                first = (piece - row_pieces) * vertices
+                project_vertices(positions, proj.to_camera, proj.eye, proj.half_width, proj.half_height,
+                                 proj.orthographic, first, wp.min(first + vertices, vertex_count), screen,
+                                 depth_weights)
+            done += 1
+            piece = take_next_item_from(sync, QUEUE_START)
         # small triangles are drawn into the cleared buffer from projected vertices
-        if not all_arrived(sync, BARRIER_PROJECTED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
+        if not all_done(sync, BARRIER_PROJECTED, done, row_pieces + vertex_pieces + 1, ABORTED, SPINS_BEFORE_YIELD,
+                        os_yield):
             return
         passes = int(1)
         draw = DRAW_ALL
