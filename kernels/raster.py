@@ -727,7 +727,7 @@ _TRIANGLES_WITH_SAMPLES = """
     // For each triangle [first, end) (at most 64), whether count_triangle has anything to do:
     // clear only where its indices are valid, its vertices projected and its screen rectangle
     // (projected_rect) holds no sample. Branch-free over the triangles, so that the compiler
-    // runs several at once in vector registers, with gathers.
+    // runs several at once in vector registers.
     const wp::int32* corner = (const wp::int32*)indices.data;
     const wp::int32* q = (const wp::int32*)screen.data;
     const wp::uint32 n = (wp::uint32)vertex_count;
@@ -1139,9 +1139,10 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     stages.
 
     From START: the buffer's rows cleared and the vertices projected, in pieces taken from a
-    queue (launch 0 first decides on the occlusion pass), until all are done (all_done); then chunks of chunk_size triangles taken from a queue shared by every launch, ticket t
-    naming chunk (t mod launches) chunk_stride + t / launches, so that launches running side by
-    side draw chunks far apart in the mesh (and mostly apart on screen) rather than neighbours:
+    queue (launch 0 first decides on the occlusion pass), until all are done (all_done); then
+    chunks of chunk_size triangles taken from a queue shared by every launch, ticket t naming
+    chunk (t mod launches) chunk_stride + t / launches, so that launches running side by side
+    draw chunks far apart in the mesh (and mostly apart on screen) rather than neighbours:
     small triangles drawn into the buffer at once (atomically, as another launch may draw the same
     sample), the others that may cover a sample listed with their screen rectangles at
     binned_face and binned_rect [chunk chunk_size, + binned_count[chunk]) and counted per tile

@@ -128,16 +128,15 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     # fills one or two faces)
     blocks = WORK_BLOCKS_PER_THREAD * threads
     rows = -(-RESOLUTION // blocks)
-    per_block = max(-(-triangles // blocks), 1)
     planes = wp.empty(max(triangles, 1), dtype=lb.LightPlane, device="cpu")
     for first, n in spans:
         if n == 0:
             continue
 
-        def plane(first_triangle, view=views[first]):
-            count = min(per_block, triangles - first_triangle)
-            wp.launch(lb.light_planes, dim=launch_threads(count), device="cpu",
-                      inputs=[positions, indices, view, first_triangle, first_triangle + count, planes])
+        def plane(block, view=views[first]):
+            start, end = block
+            wp.launch(lb.light_planes, dim=launch_threads(end - start), device="cpu",
+                      inputs=[positions, indices, view, start, end, planes])
 
         def finish(job):
             v, row = job
@@ -149,7 +148,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
             block = v * cells + row * RESOLUTION
             return start[min(block + rows * RESOLUTION, (v + 1) * cells)] > start[block]
 
-        run_all(plane, range(0, triangles, per_block), threads)
+        run_all(plane, _triangle_blocks(triangles, threads), threads)
         run_all(finish, [(v, row) for v in range(first, first + n) for row in range(0, RESOLUTION, rows)
                          if filled(v, row)], threads)
     buffers = lb.LightBuffers()
@@ -181,16 +180,20 @@ def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int, paralle
     views = buffers.views.numpy()
     spans = buffers.light_views.numpy()
     lights = [k for k, (first, n) in enumerate(spans) if n and (parallel_views or not views[first]["orthographic"])]
-    triangles = buffers.triangles
-    per_block = -(-triangles // (WORK_BLOCKS_PER_THREAD * threads))
 
     def mark(job):
-        light, first = job
-        count = min(per_block, triangles - first)
-        wp.launch(kernel, dim=launch_threads(count), device="cpu",
-                  inputs=[buffers, light, gpu.data.positions, gpu.data.indices, first, first + count])
+        light, (start, end) = job
+        wp.launch(kernel, dim=launch_threads(end - start), device="cpu",
+                  inputs=[buffers, light, gpu.data.positions, gpu.data.indices, start, end])
 
-    run_all(mark, [(light, first) for light in lights for first in range(0, triangles, per_block)], threads)
+    run_all(mark, [(light, block) for light in lights for block in _triangle_blocks(buffers.triangles, threads)],
+            threads)
+
+
+def _triangle_blocks(triangles: int, threads: int) -> list[tuple[int, int]]:
+    """[start, end) blocks of the triangles, WORK_BLOCKS_PER_THREAD per thread."""
+    per_block = max(-(-triangles // (WORK_BLOCKS_PER_THREAD * threads)), 1)
+    return [(start, min(start + per_block, triangles)) for start in range(0, triangles, per_block)]
 
 
 def cells_per_radian(view: lb.Projection) -> float:
