@@ -5,10 +5,10 @@ triangles along a Morton curve (pbrwarp/locality.py). Its bounding box and norma
 once per mesh (cluster_bounds), bound where its triangles project, how near they come and which
 way they face. The rasterizer drops clusters off screen (outside_view, cluster_view) and, where
 every triangle is flagged for back-face culling, those facing away (faces_away); it draws the
-clusters facing the eye (faces_eye) first, then keeps, for each OCCLUSION_TILE² block of pixels,
-the farthest depth drawn there (build_occlusion_tiles: one level of the hierarchical z-buffer of
-Greene, Kass and Miller 1993), and skips every other cluster whose box lies behind all the blocks
-it covers (is_occluded). Off-screen and occlusion tests are conservative: a cluster is skipped
+clusters facing the eye (faces_eye) first, then skips every other cluster whose box lies behind
+what the buffer holds at every sample its triangles could cover (is_occluded: the z-buffer test
+of a bounding box of Greene, Kass and Miller 1993, at the finest level of their hierarchy, read
+from the buffer itself). Off-screen and occlusion tests are conservative: a cluster is skipped
 only where none of its triangles could change the visibility buffer, which is then the one drawn
 without culling, bit for bit. The facing-away test leaves a margin (BACK_FACE_MARGIN) for the
 snapping of vertices, which decides each triangle's facing in the rasterizer.
@@ -16,7 +16,7 @@ snapping of vertices, which decides each triangle's facing in the rasterizer.
 
 import warp as wp
 
-from .projection import Projection, camera_coordinates, empty_rect, pixels_around, screen_point
+from .projection import Projection, camera_coordinates, empty_rect, sampled_pixels_within, screen_point
 
 wp.set_module_options({"enable_backward": False})
 
@@ -25,11 +25,9 @@ wp.set_module_options({"enable_backward": False})
 # threads, 14% faster than without clusters against 7%), the cluster tests not costing more. At
 # most 64: the rasterizer draws a cluster from one 64-bit mask of its triangles.
 CLUSTER_SIZE = wp.constant(64)
-# Pixels per side of an occlusion tile.
-OCCLUSION_TILE = wp.constant(8)
-# Occlusion tiles a cluster's rectangle may span and still be tested: larger clusters, whose
-# triangles are large too, are drawn (testing them would cost more than it could save).
-MAX_TESTED_TILES = wp.constant(64)
+# Samples a cluster's rectangle may hold and still be tested: larger clusters, whose triangles are
+# large too, are drawn (testing them would cost more than it could save).
+MAX_TESTED_SAMPLES = wp.constant(4096)
 # Bound on the float64 rounding of a camera-space depth relative to the magnitudes it is computed
 # from, with room to spare (a few units of 1.1e-16 per operation).
 DEPTH_ROUNDING = wp.constant(wp.float64(1.0e-12))
@@ -198,7 +196,7 @@ def outside_view(proj: Projection, lo: wp.vec3, hi: wp.vec3) -> bool:
 
 
 @wp.func
-def cluster_view(proj: Projection, lo: wp.vec3, hi: wp.vec3):
+def cluster_view(proj: Projection, lo: wp.vec3, hi: wp.vec3, spp: int):
     """(rect, nearest) of a cluster's box: the pixels whose samples its triangles may cover
     (empty if none: off screen or wholly behind the camera plane) and a lower bound on the
     depth the rasterizer gives them (0 where the box reaches the camera plane: not testable).
@@ -243,60 +241,28 @@ def cluster_view(proj: Projection, lo: wp.vec3, hi: wp.vec3):
     if nearest <= wp.float64(0.0):
         # the box reaches the camera plane, where its projection is unbounded
         return wp.vec4i(0, 0, proj.width - 1, proj.height - 1), wp.float64(0.0)
-    # (the pixel of margin also covers the snapping of vertices, 1/8192 pixel)
-    r = pixels_around(proj, wp.vec4d(x0, y0, x1, y1))
+    r = sampled_pixels_within(proj, wp.vec4d(x0, y0, x1, y1), spp)
     if r[0] > r[2]:
         return r, wp.float64(0.0)
     return r, nearest
 
 
-@wp.func
-def tested_tiles(rect: wp.vec4i) -> int:
-    return (rect[2] / OCCLUSION_TILE - rect[0] / OCCLUSION_TILE + 1) * (rect[3] / OCCLUSION_TILE
-                                                                         - rect[1] / OCCLUSION_TILE + 1)
-
-
 @wp.func_native("""
-    const int height = out.shape[0], width = out.shape[1], columns = tiles.shape[1];
-    for (int ty = first_tile_row; ty < end_tile_row; ++ty) {
-        float* tile_row = (float*)((char*)tiles.data + (size_t)ty * tiles.strides[0]);
-        wp::uint32 zero = 0;
-        for (int tx = 0; tx < columns; ++tx) memcpy(tile_row + tx, &zero, sizeof(zero));
-        for (int row = ty * tile; row < height && row < (ty + 1) * tile; ++row) {
-            const wp::uint64* entry = (const wp::uint64*)((const char*)out.data + (size_t)row * out.strides[0]);
-            for (int tx = 0; tx < columns; ++tx) {
-                wp::uint64 largest = 0;
-                const int end = (tx + 1) * tile * spp < width ? (tx + 1) * tile * spp : width;
-                for (int i = tx * tile * spp; i < end; ++i) largest = entry[i] > largest ? entry[i] : largest;
-                wp::uint32 bits, kept;
-                bits = (wp::uint32)(largest >> 32);
-                memcpy(&kept, tile_row + tx, sizeof(kept));
-                if (bits > kept) memcpy(tile_row + tx, &bits, sizeof(bits));
-            }
-        }
-        for (int tx = 0; tx < columns; ++tx) {
-            wp::uint32 bits;
-            memcpy(&bits, tile_row + tx, sizeof(bits));
-            if (bits >= 0x7F800000u) tile_row[tx] = INFINITY;
-            else memcpy(tile_row + tx, &bits, sizeof(bits));
-        }
+    // signed comparisons (AVX2 has none of unsigned 64-bit integers) of entries and bound with
+    // their top bit flipped, OR-ed without a branch, so that a row runs in vector registers
+    const wp::int64 flipped = (wp::int64)(bound ^ 0x8000000000000000ull);
+    for (int row = rect[1]; row <= rect[3]; ++row) {
+        const wp::uint64* entry = (const wp::uint64*)((const char*)out.data + (size_t)row * out.strides[0]);
+        wp::int64 reached = 0;
+        for (int i = rect[0] * spp; i < (rect[2] + 1) * spp; ++i)
+            reached |= (wp::int64)(entry[i] ^ 0x8000000000000000ull) >= flipped;
+        if (reached) return false;
     }
+    return true;
     """)
-def build_occlusion_tiles(out: wp.array2d(dtype=wp.uint64), spp: int, tile: int, first_tile_row: int,
-                          end_tile_row: int, tiles: wp.array2d(dtype=float)):
-    """tiles[ty, tx] = the farthest depth drawn in out over the tile x tile pixels of occlusion
-    tile (tx, ty), for the tile rows [first_tile_row, end_tile_row): the largest entry's depth
-    bits (entries order by depth first), read as a float; +inf if a sample there holds nothing
-    (NO_TRIANGLE's bits, all ones) or its depth is infinite. Row by row, as the buffer lies in
-    memory; the bits are kept in ``tiles`` until a tile row is done."""
+def is_occluded(out: wp.array2d(dtype=wp.uint64), rect: wp.vec4i, spp: int, bound: wp.uint64) -> bool:
+    """Whether every entry of ``out`` over the samples of rect (cluster_view's, nonempty) lies
+    below ``bound``, the least entry a deferred cluster's triangles could write there, so that
+    none of them can win a sample, not even a tie. Row by row, each without a branch. Other
+    launches may be drawing meanwhile: they only lower entries."""
     ...
-
-
-@wp.func
-def is_occluded(tiles: wp.array2d(dtype=float), rect: wp.vec4i, nearest: wp.float64) -> bool:
-    """Whether everything drawn over rect lies nearer than ``nearest`` (a deferred cluster's)."""
-    for ty in range(rect[1] / OCCLUSION_TILE, rect[3] / OCCLUSION_TILE + 1):
-        for tx in range(rect[0] / OCCLUSION_TILE, rect[2] / OCCLUSION_TILE + 1):
-            if not (wp.float64(tiles[ty, tx]) < nearest):
-                return False
-    return True

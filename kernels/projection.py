@@ -68,3 +68,29 @@ def pixels_around(proj: Projection, bounds: wp.vec4d) -> wp.vec4i:
     y0 = int(wp.floor(wp.clamp(bounds[1], wp.float64(-2.0), h + wp.float64(2.0)))) - 1
     y1 = int(wp.floor(wp.clamp(bounds[3], wp.float64(-2.0), h + wp.float64(2.0)))) + 1
     return clamped_rect(x0, y0, x1, y1, proj.width, proj.height)
+
+
+# How far (pixels) a vertex's snapped screen position may lie from where the float64 projection
+# of a box around it puts the box's side: the snapping (1/8192 pixel) and the rounding of the two
+# projections (~1e-10 pixel within the guard band), with room to spare.
+SCREEN_TOLERANCE = wp.constant(wp.float64(1.0 / 1024.0))
+
+
+@wp.func
+def sampled_pixels_within(proj: Projection, bounds: wp.vec4d, spp: int) -> wp.vec4i:
+    """Pixels of the image with a sample the rasterizer may find within screen bounds (min x,
+    min y, max x, max y) of projected vertices, as its sampled_pixel_range decides: with spp = 1
+    those whose centre lies there, with more those whose [p, p + 1] meets them; SCREEN_TOLERANCE
+    wider, clamped before the conversion to int (bounds may be huge or infinite)."""
+    w = wp.float64(proj.width)
+    h = wp.float64(proj.height)
+    offset = wp.float64(0.5)
+    if spp != 1:
+        offset = wp.float64(1.0)
+    x0 = int(wp.ceil(wp.clamp(bounds[0] - offset - SCREEN_TOLERANCE, wp.float64(-2.0), w + wp.float64(2.0))))
+    y0 = int(wp.ceil(wp.clamp(bounds[1] - offset - SCREEN_TOLERANCE, wp.float64(-2.0), h + wp.float64(2.0))))
+    if spp != 1:
+        offset = wp.float64(0.0)
+    x1 = int(wp.floor(wp.clamp(bounds[2] - offset + SCREEN_TOLERANCE, wp.float64(-2.0), w + wp.float64(2.0))))
+    y1 = int(wp.floor(wp.clamp(bounds[3] - offset + SCREEN_TOLERANCE, wp.float64(-2.0), h + wp.float64(2.0))))
+    return clamped_rect(x0, y0, x1, y1, proj.width, proj.height)

@@ -31,18 +31,15 @@ from .projection import Projection, camera_coordinates, clamped_rect, empty_rect
 from .sampling import multi_jittered_sample
 from .occlusion import (
     CLUSTER_SIZE,
-    MAX_TESTED_TILES,
+    MAX_TESTED_SAMPLES,
     NOT_DEFERRED,
     SKIPPED,
-    OCCLUSION_TILE,
     all_flagged,
-    build_occlusion_tiles,
     cluster_view,
     faces_away,
     faces_eye,
-    outside_view,
     is_occluded,
-    tested_tiles,
+    outside_view,
 )
 from .work_queue import add_atomically, take_next_item_from
 
@@ -94,10 +91,6 @@ EYE_IN_PLANE_TOLERANCE = wp.constant(wp.float64(1.0e-9))
 DIRECTION_TOLERANCE = wp.constant(wp.float64(1.0e-12))
 
 
-@wp.func_native("wp::uint32 bits; memcpy(&bits, &x, sizeof(bits)); return bits;")
-def float_bits(x: float) -> wp.uint32: ...
-
-
 @wp.func_native("return fmaf(a, b, c);")
 def fused_multiply_add(a: float, b: float, c: float) -> float: ...
 
@@ -118,6 +111,10 @@ def prefetch_row_span(out: wp.array2d(dtype=wp.uint64), row: int, first: int, co
     """Asks for the cache lines of out[row, first:first + count], to be written soon: a tile's
     rows lie a whole image row apart, where the hardware prefetchers do not follow."""
     ...
+
+
+@wp.func_native("wp::uint32 bits; memcpy(&bits, &x, sizeof(bits)); return bits;")
+def float_bits(x: float) -> wp.uint32: ...
 
 
 @wp.func
@@ -926,20 +923,19 @@ BARRIER_OFFSETS = wp.constant(5)
 BARRIER_FILLED = wp.constant(6)
 ABORTED = wp.constant(7)
 OUTCOME = wp.constant(8)
-# with occlusion culling: the queue of the deferred clusters' chunks, two more barriers, and how
+# with occlusion culling: the queue of the deferred clusters' chunks, one more barrier, and how
 # many clusters were off screen, deferred, then found occluded, and culled as facing away
 QUEUE_DEFERRED = wp.constant(9)
 BARRIER_DRAWN_FIRST = wp.constant(10)
-BARRIER_OCCLUSION_TILES = wp.constant(11)
-CLUSTERS_OFF_SCREEN = wp.constant(12)
-CLUSTERS_DEFERRED = wp.constant(13)
-CLUSTERS_OCCLUDED = wp.constant(14)
-CLUSTERS_FACING_AWAY = wp.constant(15)
+CLUSTERS_OFF_SCREEN = wp.constant(11)
+CLUSTERS_DEFERRED = wp.constant(12)
+CLUSTERS_OCCLUDED = wp.constant(13)
+CLUSTERS_FACING_AWAY = wp.constant(14)
 # whether this call draws in two passes (occlusion_pass_pays, decided by launch 0)
-OCCLUSION_PASS = wp.constant(16)
+OCCLUSION_PASS = wp.constant(15)
 # the queue of the first stage's pieces (rows to clear, vertices to project)
-QUEUE_START = wp.constant(17)
-SYNC_SLOTS = 18
+QUEUE_START = wp.constant(16)
+SYNC_SLOTS = 17
 # Pieces of the first stage per launch.
 START_PIECES_PER_LAUNCH = wp.constant(8)
 # Outcomes of binning: drawn (or drawing), an index out of range (nothing read through it), or
@@ -1000,17 +996,20 @@ def share(n: int, parts: int, minimum: int) -> int:
 
 # What a pass over the chunks draws: every triangle (no clusters); the clusters not culled, in one
 # pass; or in two, first the clusters that cannot be tested or face the eye (the others
-# deferred), then the deferred ones not occluded, or all of them where too few were deferred to
-# pay for the occlusion tiles.
+# deferred), then the deferred ones not occluded.
 DRAW_ALL = wp.constant(0)
 DRAW_CULLED = wp.constant(1)
 DRAW_FIRST = wp.constant(2)
 DRAW_UNOCCLUDED = wp.constant(3)
-DRAW_DEFERRED = wp.constant(4)
-# Samples per deferred triangle above which the occlusion tiles are not built: building them reads
-# every sample (~1 ns each), testing a cluster saves ~25 ns per triangle it culls, and a few tenths
-# of the deferred triangles are culled where culling works at all (development measurements).
-SAMPLES_PER_DEFERRED_TRIANGLE = wp.constant(4)
+# Two passes where the mesh has at most this many samples per triangle and at least one cluster in
+# FACING_SHARE faces away. With more samples per triangle, the triangles facing the eye are too
+# large to be drawn in the first pass (they are binned, drawn last) and the tests read more
+# samples for each triangle they may cull; with fewer clusters facing away, the pass's barrier
+# costs more than the tests save. Development measurements, 2 threads, in-process A/B: an
+# 82k-triangle icosphere at 1024² (13 samples per triangle) 18% faster in two passes, at 2048²
+# (51) 5% slower; the Stanford bunny (69k) at 1024² 4% faster.
+SAMPLES_PER_TRIANGLE = wp.constant(16)
+FACING_SHARE = wp.constant(8)
 # Clusters sampled to estimate how many face away from the eye (occlusion_pass_pays).
 FACING_SAMPLE = wp.constant(256)
 
@@ -1020,11 +1019,11 @@ def occlusion_pass_pays(proj: Projection, cluster_lower: wp.array(dtype=wp.vec3)
                         cluster_upper: wp.array(dtype=wp.vec3), cluster_axis: wp.array(dtype=wp.vec3), triangles: int,
                         samples_count: wp.int64) -> bool:
     """Whether drawing in two passes, the clusters facing away tested for occlusion, may pay:
-    whether those facing away (as faces_eye tells them apart, estimated from FACING_SAMPLE
-    clusters evenly spread) hold enough triangles to pay for the occlusion tiles, as the second
-    pass decides again on the true count. Otherwise that pass and its barrier cost more than
-    they save (a height field seen from above, a mesh of few triangles for the samples)."""
-    if wp.int64(triangles) * wp.int64(SAMPLES_PER_DEFERRED_TRIANGLE) < samples_count:
+    whether the triangles are small for the samples and enough clusters face away (as faces_eye
+    tells them apart, estimated from FACING_SAMPLE clusters evenly spread); see
+    SAMPLES_PER_TRIANGLE. Not for a height field seen from above, nor a mesh of few triangles
+    for the samples."""
+    if wp.int64(triangles) * wp.int64(SAMPLES_PER_TRIANGLE) < samples_count:
         return False
     clusters = cluster_lower.shape[0]
     sampled = int(0)
@@ -1033,8 +1032,7 @@ def occlusion_pass_pays(proj: Projection, cluster_lower: wp.array(dtype=wp.vec3)
         sampled += 1
         if not faces_eye(proj, cluster_lower[cluster], cluster_upper[cluster], cluster_axis[cluster]):
             away += 1
-    return (wp.int64(away) * wp.int64(triangles) * wp.int64(SAMPLES_PER_DEFERRED_TRIANGLE)
-            >= wp.int64(sampled) * samples_count)
+    return away * FACING_SHARE >= sampled
 
 
 @wp.func
@@ -1047,7 +1045,7 @@ def count_chunk(draw: int, chunk: int, positions: wp.array(dtype=wp.vec3), indic
                 cluster_lower: wp.array(dtype=wp.vec3), cluster_upper: wp.array(dtype=wp.vec3),
                 cluster_axis: wp.array(dtype=wp.vec3), cluster_spread: wp.array(dtype=float),
                 cluster_rect: wp.array(dtype=wp.vec4i), cluster_nearest: wp.array(dtype=wp.float64),
-                occlusion: wp.array2d(dtype=float), sync: wp.array(dtype=wp.int32), out: wp.array2d(dtype=wp.uint64)):
+                sync: wp.array(dtype=wp.int32), out: wp.array2d(dtype=wp.uint64)):
     """count_triangle for the triangles of ``chunk`` that pass ``draw`` (DRAW_ALL, ...), cluster
     by cluster; DRAW_FIRST records the deferred clusters' rectangles and nearest depths, and the
     counts of clusters off screen, facing away, deferred and occluded go to ``sync``."""
@@ -1079,11 +1077,11 @@ def count_chunk(draw: int, chunk: int, positions: wp.array(dtype=wp.vec3), indic
                             facing_away += 1
                             fate = SKIPPED
                 if fate == NOT_DEFERRED and draw == DRAW_FIRST:
-                    rect, nearest = cluster_view(proj, lo, hi)
+                    rect, nearest = cluster_view(proj, lo, hi, spp)
                     if rect[0] > rect[2]:
                         off_screen += 1
                         fate = SKIPPED
-                    elif nearest > wp.float64(0.0) and tested_tiles(rect) <= MAX_TESTED_TILES:
+                    elif nearest > wp.float64(0.0) and rect_pixels(rect) * spp <= MAX_TESTED_SAMPLES:
                         cluster_rect[cluster] = rect
                         fate = nearest
                         deferred += 1
@@ -1091,7 +1089,11 @@ def count_chunk(draw: int, chunk: int, positions: wp.array(dtype=wp.vec3), indic
     if draw == DRAW_UNOCCLUDED:
         for cluster in range(first_cluster, end_cluster):
             if cluster_nearest[cluster] > wp.float64(0.0):
-                if is_occluded(occlusion, cluster_rect[cluster], cluster_nearest[cluster]):
+                # entries order by depth first and positive float32 depths by their bits: one
+                # below this bound has a depth under the float32 nearest rounds to, so at most
+                # the float32 below it, which lies below nearest
+                bound = visibility_entry(float(cluster_nearest[cluster]), 0)
+                if is_occluded(out, cluster_rect[cluster], spp, bound):
                     cluster_nearest[cluster] = SKIPPED
                     occluded += 1
     for cluster in range(first_cluster, end_cluster):
@@ -1132,7 +1134,7 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                         cluster_lower: wp.array(dtype=wp.vec3), cluster_upper: wp.array(dtype=wp.vec3),
                         cluster_axis: wp.array(dtype=wp.vec3), cluster_spread: wp.array(dtype=float),
                         cluster_rect: wp.array(dtype=wp.vec4i), cluster_nearest: wp.array(dtype=wp.float64),
-                        occlusion: wp.array2d(dtype=float), sync: wp.array(dtype=wp.int32),
+                        sync: wp.array(dtype=wp.int32),
                         out: wp.array2d(dtype=wp.uint64)):
     """The whole visibility buffer: launched with one index on each of ``launches`` threads
     (``launch`` = 0, 1, ...) side by side, which meet at spinning barriers (all_arrived) between
@@ -1151,11 +1153,10 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     clusters (cluster_lower... nonempty) the chunks are drawn cluster by cluster (count_chunk),
     but for the clusters off screen or facing away from the eye where every triangle is flagged
     for culling; where occlusion_pass_pays (launch 0 decides it, in ``sync``), in two passes:
-    first those facing the eye or not testable,
-    the others deferred (their rectangle and nearest depth kept in cluster_rect and
-    cluster_nearest); then, once each launch has built its share of the occlusion tiles from the
-    buffer (if enough triangles were deferred to pay for them), the deferred clusters not
-    occluded, their chunks taken from a second queue. Launch 0
+    first those facing the eye or not testable, the others deferred (their rectangle and nearest
+    depth kept in cluster_rect and cluster_nearest); then, once every launch has drawn its
+    first-pass chunks, the deferred clusters that what the buffer holds by then does not hide
+    (is_occluded), their chunks taken from a second queue. Launch 0
     then lays out the bins (bin_offsets) and records the OUTCOME in ``sync``; all stop unless it
     is BINNED (or if stop_after_binning, to time the parts apart). From FILL: each listed
     triangle's slot appended to the bin of every tile its rectangle touches, chunk by chunk from
@@ -1210,17 +1211,8 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                 # the clusters facing away are tested against what those facing the eye drew
                 if not all_arrived(sync, BARRIER_DRAWN_FIRST, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
                     return
-                draw = DRAW_DEFERRED
                 queue = QUEUE_DEFERRED
-                deferred_triangles = wp.int64(sync[CLUSTERS_DEFERRED]) * wp.int64(CLUSTER_SIZE)
-                if deferred_triangles * wp.int64(SAMPLES_PER_DEFERRED_TRIANGLE) >= samples_count:
-                    tile_rows = share(occlusion.shape[0], launches, 1)
-                    build_occlusion_tiles(out, spp, OCCLUSION_TILE, wp.min(launch * tile_rows, occlusion.shape[0]),
-                                          wp.min((launch + 1) * tile_rows, occlusion.shape[0]), occlusion)
-                    if not all_arrived(sync, BARRIER_OCCLUSION_TILES, launches, ABORTED, SPINS_BEFORE_YIELD,
-                                       os_yield):
-                        return
-                    draw = DRAW_UNOCCLUDED
+                draw = DRAW_UNOCCLUDED
             ticket = take_next_item_from(sync, queue)
             while ticket < launches * chunk_stride:
                 chunk = (ticket % launches) * chunk_stride + ticket / launches
@@ -1228,7 +1220,7 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                     count_chunk(draw, chunk, positions, indices, vertex_count, screen, depth_weights, proj, samples,
                                 spp, chunk_size, triangles, tiles_x, cull_back_faces, binned_count, binned_face,
                                 binned_rect, tile_counts, bad_indices, cluster_lower, cluster_upper, cluster_axis,
-                                cluster_spread, cluster_rect, cluster_nearest, occlusion, sync, out)
+                                cluster_spread, cluster_rect, cluster_nearest, sync, out)
                 ticket = take_next_item_from(sync, queue)
         if not all_arrived(sync, BARRIER_COUNTED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
             return

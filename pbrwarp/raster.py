@@ -94,8 +94,6 @@ CLUSTER_SIZE = int(ok.CLUSTER_SIZE)
 # count_chunk draws a cluster from one 64-bit mask of its triangles (kernels/raster.py triangles_to_count)
 assert CLUSTER_SIZE <= 64, "a cluster's triangles must fit in one uint64 mask"
 
-OCCLUSION_TILE = int(ok.OCCLUSION_TILE)
-
 
 def _chunks(n: int, parts: int):
     """(index, first, count) of up to ``parts`` contiguous non-empty ranges covering [0, n)."""
@@ -287,14 +285,15 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     ``clusters`` (:func:`triangle_clusters` of these very arrays) turns on culling of clusters:
     those whose bounding box lies off screen are skipped; so are those facing away from the eye
     by more than 3° where every triangle is flagged in ``cull_back_faces``; the clusters facing
-    the eye are drawn first, and then the others skipped where their box lies behind everything
-    drawn over it (kernels/occlusion.py). The buffer is the same, bit for bit (for the clusters
-    facing away: unless one of their triangles, under ~1/50 pixel across and within 3° of
-    edge-on, has its winding flipped by the snapping of its vertices); a dense closed mesh seen
-    from outside draws about half its triangles.
-    Clusters facing away are tested in a second pass only where enough of them (estimated from
-    a sample) hold enough triangles to pay for building the occlusion tiles. ``counts``, if a
-    dict, then receives how many clusters there are ("clusters") and were "off_screen",
+    the eye are drawn first, and then the others skipped where their box lies behind what the
+    buffer holds at every sample it could cover (kernels/occlusion.py). The buffer is the same,
+    bit for bit (for the clusters facing away: unless one of their triangles, under ~1/50 pixel
+    across and within 3° of edge-on, has its winding flipped by the snapping of its vertices); a
+    dense closed mesh seen from outside draws about half its triangles. Clusters facing away are
+    tested in a second pass only where the mesh has at most 16 samples per triangle and at least
+    one cluster in 8 faces away (estimated from a sample), as otherwise the pass costs more than
+    it saves (kernels/raster.py occlusion_pass_pays). ``counts``, if a dict, then receives how
+    many clusters there are ("clusters") and were "off_screen",
     "facing_away" (culled), "deferred" (to the second pass) and "occluded".
 
     ``orthographic`` draws the parallel projection along cam.forward instead (see
@@ -350,9 +349,6 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     cluster_count = len(clusters) if clusters is not None else 0
     cluster_rect = _scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i)
     cluster_nearest = _scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64)
-    occlusion_shape = ((math.ceil(height / OCCLUSION_TILE), math.ceil(width / OCCLUSION_TILE)) if cluster_count
-                       else (1, 1))
-    occlusion = _scratch_array(scratch, "occlusion", occlusion_shape, wp.float32)
     if cluster_count:
         cluster_arrays = [clusters.lower, clusters.upper, clusters.axis, clusters.spread]
     else:
@@ -369,7 +365,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                                   chunk_size, math.ceil(chunk_count / threads),
                                   triangles, tiles_x, _tile_stride(tiles), cull_back_faces, binned_count, binned_face,
                                   binned_rect, tile_counts, bad_indices, cursors, bin_start, bin_total, bins,
-                                  *cluster_arrays, cluster_rect, cluster_nearest, occlusion, sync, out])
+                                  *cluster_arrays, cluster_rect, cluster_nearest, sync, out])
             except BaseException:
                 sync.numpy()[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one
                 raise

@@ -62,21 +62,22 @@ def test_clusters_leave_out_degenerate_triangles_and_opposed_normals():
 @wp.kernel(enable_backward=False)
 def cluster_tests(proj: ok.Projection, lower: wp.array(dtype=wp.vec3), upper: wp.array(dtype=wp.vec3),
                   axis: wp.array(dtype=wp.vec3), spread: wp.array(dtype=float), away: wp.array(dtype=int),
-                  outside: wp.array(dtype=int), rect: wp.array(dtype=wp.vec4i), nearest: wp.array(dtype=wp.float64)):
+                  outside: wp.array(dtype=int), spp: int, rect: wp.array(dtype=wp.vec4i),
+                  nearest: wp.array(dtype=wp.float64)):
     k = wp.tid()
     away[k] = int(ok.faces_away(proj, lower[k], upper[k], axis[k], spread[k]))
     outside[k] = int(ok.outside_view(proj, lower[k], upper[k]))
-    r, z = ok.cluster_view(proj, lower[k], upper[k])
+    r, z = ok.cluster_view(proj, lower[k], upper[k], spp)
     rect[k] = r
     nearest[k] = z
 
 
-def run_cluster_tests(clusters, cam, orthographic=False):
+def run_cluster_tests(clusters, cam, orthographic=False, spp=1):
     count = len(clusters)
     away, outside = wp.empty(count, dtype=int), wp.empty(count, dtype=int)
     rect, nearest = wp.empty(count, dtype=wp.vec4i), wp.empty(count, dtype=wp.float64)
     wp.launch(cluster_tests, dim=count, inputs=[projection(cam, orthographic), clusters.lower, clusters.upper,
-                                                clusters.axis, clusters.spread, away, outside, rect, nearest])
+                                                clusters.axis, clusters.spread, away, outside, spp, rect, nearest])
     return away.numpy().astype(bool), outside.numpy().astype(bool), rect.numpy(), nearest.numpy()
 
 
@@ -93,18 +94,31 @@ def parallel_camera(direction, distance, half_extent, size, rng):
     return cam
 
 
+def sampled_pixels(lo, hi, spp):
+    """First and last pixel with a sample the rasterizer may find in [lo, hi] (float64 screen
+    coordinates of vertices, widened by their snapping to 1/4096 pixel): pixel centres for spp =
+    1, anywhere in [p, p + 1] for more."""
+    lo, hi = lo - 1.0 / 8192, hi + 1.0 / 8192
+    if spp == 1:
+        return np.ceil(lo - 0.5), np.floor(hi - 0.5)
+    return np.ceil(lo - 1.0), np.floor(hi)
+
+
 def test_cluster_tests_are_conservative_against_float64_geometry():
     """Over random cameras: a cluster said to face away has every triangle facing away from the
-    eye; one said to lie outside the view, or given a rectangle and nearest depth, has every vertex
-    behind the camera or projecting beyond the image, or inside that rectangle and no nearer."""
+    eye; one said to lie outside the view has every vertex behind the camera or projecting beyond
+    the image; one given a rectangle and nearest depth has every vertex no nearer and every
+    sample its vertices' screen bounds hold in that rectangle; one given an empty rectangle
+    holds no sample of the image."""
     scene = scene_of(bunny() if ASSETS.exists() else icosphere(5))
     positions, indices, clusters = uploaded(scene)
     corners = triangles_of(positions, indices)
     normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    seen = {"away": 0, "outside": 0, "rect": 0}
-    for camera in random_cameras(scene, 12, seed=21):
+    seen = {"away": 0, "outside": 0, "rect": 0, "no sample": 0}
+    for i, camera in enumerate(random_cameras(scene, 12, seed=21)):
         cam = camera_data(camera, 96, 64)
-        away, outside, rect, nearest = run_cluster_tests(clusters, cam)
+        spp = 4 if i % 2 else 1
+        away, outside, rect, nearest = run_cluster_tests(clusters, cam, spp=spp)
         eye = np.array(cam.eye, np.float64)
         for k in range(len(clusters)):
             part = slice(k * CLUSTER_SIZE, (k + 1) * CLUSTER_SIZE)
@@ -120,14 +134,22 @@ def test_cluster_tests_are_conservative_against_float64_geometry():
                 seen["outside"] += 1
                 assert not on_screen.any()
             r = rect[k]
+            if nearest[k] > 0 or (r[0] > r[2] and front.all()):
+                px0, px1 = sampled_pixels(x.min(), x.max(), spp)
+                py0, py1 = sampled_pixels(y.min(), y.max(), spp)
+                px0, py0 = max(px0, 0), max(py0, 0)
+                px1, py1 = min(px1, cam.width - 1), min(py1, cam.height - 1)
             if nearest[k] > 0:
                 seen["rect"] += 1
                 assert front.all() and c[:, 2].min() > nearest[k]
-                # (the rectangle is clamped to the image)
-                assert np.all(((x >= r[0]) | (r[0] == 0)) & ((x <= r[2] + 1) | (r[2] == cam.width - 1)))
-                assert np.all(((y >= r[1]) | (r[1] == 0)) & ((y <= r[3] + 1) | (r[3] == cam.height - 1)))
+                if px0 <= px1 and py0 <= py1:
+                    assert r[0] <= px0 and px1 <= r[2] and r[1] <= py0 and py1 <= r[3]
             elif r[0] > r[2]:
-                assert not on_screen.any()
+                if front.all():
+                    seen["no sample"] += 1
+                    assert px0 > px1 or py0 > py1
+                else:
+                    assert not on_screen.any()
     assert min(seen.values()) > 0, seen
 
 
@@ -153,24 +175,37 @@ def test_parallel_projection_cluster_tests_are_conservative():
 
 
 @wp.kernel(enable_backward=False)
-def occlusion_tiles(out: wp.array2d(dtype=wp.uint64), spp: int, tile: int, tiles: wp.array2d(dtype=float)):
-    ok.build_occlusion_tiles(out, spp, tile, 0, tiles.shape[0], tiles)
+def occlusion_verdicts(out: wp.array2d(dtype=wp.uint64), spp: int, rects: wp.array(dtype=wp.vec4i),
+                       bounds: wp.array(dtype=wp.uint64), verdicts: wp.array(dtype=int)):
+    k = wp.tid()
+    verdicts[k] = int(ok.is_occluded(out, rects[k], spp, bounds[k]))
 
 
 @pytest.mark.parametrize("spp, width, height", [(1, 37, 21), (4, 16, 9)])
-def test_occlusion_tiles_hold_the_farthest_depth_drawn(spp, width, height):
+def test_occlusion_verdict_is_every_sample_below_the_bound(spp, width, height):
+    """Against NumPy over random buffers, rectangles and bounds: occluded exactly where every
+    entry over the rectangle's samples is below the bound (empty samples, all ones, never are),
+    whatever the entries' top bits, as the kernel compares them signed with the top bit flipped."""
     rng = np.random.default_rng(spp)
     depths = rng.uniform(0.1, 100.0, size=(height, width * spp)).astype(np.float32)
-    ids = rng.integers(0, 1000, depths.shape).astype(np.uint64)
-    entries = (depths.view(np.uint32).astype(np.uint64) << np.uint64(32)) | ids
-    entries[rng.random(entries.shape) < 0.05] = NO_TRIANGLE
-    tile = int(ok.OCCLUSION_TILE)
-    tiles = wp.empty((-(-height // tile), -(-width // tile)), dtype=float)
-    wp.launch(occlusion_tiles, dim=1, inputs=[wp.array(entries, dtype=wp.uint64), spp, tile, tiles])
-    drawn = np.where(entries == np.uint64(NO_TRIANGLE), np.inf, depths)
-    for ty, tx in np.ndindex(tiles.shape):
-        block = drawn[ty * tile:(ty + 1) * tile, tx * tile * spp:(tx + 1) * tile * spp]
-        assert tiles.numpy()[ty, tx] == block.max()
+    entries = (depths.view(np.uint32).astype(np.uint64) << np.uint64(32)) | rng.integers(0, 1000, depths.shape,
+                                                                                           dtype=np.uint64)
+    entries[rng.random(entries.shape) < 0.003] = NO_TRIANGLE
+    count = 4000
+    x = np.sort(rng.integers(0, width, (count, 2)), axis=1)
+    y = np.sort(rng.integers(0, height, (count, 2)), axis=1)
+    rects = np.stack([x[:, 0], y[:, 0], x[:, 1], y[:, 1]], axis=1).astype(np.int32)
+    # bounds near each rectangle's largest entry, on either side of it, and some with the top bit set
+    largest = np.array([entries[r[1]:r[3] + 1, r[0] * spp:(r[2] + 1) * spp].max() for r in rects])
+    bounds = largest + rng.integers(-2, 3, count).astype(np.uint64)
+    bounds[::7] = rng.integers(0, 2**63, len(bounds[::7]), dtype=np.uint64) + np.uint64(2**63)
+    verdicts = wp.empty(count, dtype=int)
+    wp.launch(occlusion_verdicts, dim=count, inputs=[wp.array(entries, dtype=wp.uint64), spp,
+                                                      wp.array(rects, dtype=wp.vec4i),
+                                                      wp.array(bounds, dtype=wp.uint64), verdicts])
+    expected = largest < bounds
+    np.testing.assert_array_equal(verdicts.numpy().astype(bool), expected)
+    assert 0.2 < expected.mean() < 0.8
 
 
 def buffers_with_and_without_clusters(positions, indices, clusters, cam, spp=1, cull=None, orthographic=False):
