@@ -604,6 +604,67 @@ def test_a_call_does_not_depend_on_what_earlier_calls_left_in_the_threads_scratc
         np.testing.assert_array_equal(buffer, fresh[0])
 
 
+def test_a_replayed_call_sees_a_camera_and_positions_changed_in_place():
+    """visibility_buffer replays its thread's last launch, packing again all but the arrays it
+    already had: the same CameraData moved in place, the same positions array changed in place
+    and the same out array give, call after call, the buffers a fresh thread draws."""
+    import threading
+
+    geom = Geometry(scene_of(icosphere(4)))
+    first, second = list(random_cameras(scene_of(icosphere(4)), 2, seed=13))
+    cam = camera_data(first, 120, 90)
+    out = wp.empty((90, 120), dtype=wp.uint64)
+
+    def on_a_fresh_thread(cam):
+        result = []
+        worker = threading.Thread(target=lambda: result.append(
+            visibility_buffer(geom.positions, geom.indices, cam, threads=2).numpy().copy()))
+        worker.start()
+        worker.join()
+        return result[0]
+
+    seen = []
+    for step in range(3):
+        if step == 1:
+            moved = camera_data(second, 120, 90)
+            for field in ("eye", "forward", "right", "up"):
+                setattr(cam, field, getattr(moved, field))
+        if step == 2:
+            geom.positions.numpy()[:] *= 0.8
+        buffer = visibility_buffer(geom.positions, geom.indices, cam, threads=2, out=out).numpy().copy()
+        np.testing.assert_array_equal(buffer, on_a_fresh_thread(cam))
+        seen.append(buffer)
+    assert not np.array_equal(seen[0], seen[1]) and not np.array_equal(seen[1], seen[2])
+
+
+@wp.kernel(enable_backward=False)
+def camera_sum(cam: CameraData, scale: float, values: wp.array(dtype=float), out: wp.array(dtype=float)):
+    out[0] = (cam.eye[0] + float(cam.width) + values[0]) * scale
+
+
+def test_replayed_launches_pack_again_all_but_the_same_arrays():
+    """_replay_launch, the raster's way to skip packing unchanged arguments: a struct changed in
+    place, a new scalar, an array changed in place and another array each show in the result."""
+    from pbrwarp.raster import _replay_launch
+
+    recorded = {}
+    cam = CameraData()
+    cam.eye, cam.width = wp.vec3(1.0, 0.0, 0.0), 10
+    values, out = wp.array([100.0], dtype=float), wp.zeros(1, dtype=float)
+
+    def result(scale, values_now):
+        _replay_launch(recorded, "sum", camera_sum, [cam, scale, values_now, out])
+        return float(out.numpy()[0])
+
+    assert result(1.0, values) == 111.0
+    cam.eye, cam.width = wp.vec3(2.0, 0.0, 0.0), 20
+    assert result(1.0, values) == 122.0
+    assert result(2.0, values) == 244.0
+    values.numpy()[0] = 200.0
+    assert result(1.0, values) == 222.0
+    assert result(1.0, wp.array([300.0], dtype=float)) == 322.0
+
+
 def test_back_face_culling_drops_exactly_the_faces_turned_away():
     corners = [pixel_to_plane(10, 10), pixel_to_plane(20, 50), pixel_to_plane(50, 12)]
     geom = mesh_geometry(corners, [[0, 1, 2]])
