@@ -314,8 +314,10 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     tested in a second pass only where the mesh has at most 16 samples per triangle and at least
     one cluster in 8 faces away (estimated from a sample), as otherwise the pass costs more than
     it saves (kernels/raster.py occlusion_pass_pays). ``counts``, if a dict, then receives how
-    many clusters there are ("clusters") and were "off_screen",
-    "facing_away" (culled), "deferred" (to the second pass) and "occluded".
+    many clusters there are ("clusters") and were "off_screen", "facing_away" (culled),
+    "deferred" (to the second pass) and "occluded" (found hidden: with several threads this
+    count varies from call to call, as a deferred cluster meets the buffer as it is when its
+    turn comes, other deferred clusters drawn into it or not; the buffer does not vary).
 
     ``orthographic`` draws the parallel projection along cam.forward instead (see
     :func:`projection`), depth then the distance in front of the plane through cam.eye; only
