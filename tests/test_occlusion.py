@@ -325,3 +325,27 @@ def test_occlusion_pass_only_where_enough_clusters_face_away():
         counts = {}
         visibility_buffer(positions, indices, camera_data(camera, 64, 64), clusters=clusters, counts=counts)
         assert (counts["deferred"] > 0.3 * counts["clusters"]) == two_passes, counts
+
+
+@pytest.mark.parametrize("scale, offset", [(1e-4, 0.0), (1e4, 0.0), (1.0, 3e3), (1e-3, 1e2)])
+def test_culling_clusters_of_tiny_huge_and_far_meshes_leaves_the_buffer_unchanged(scale, offset):
+    """The culling margins are relative to the coordinates' magnitudes: a sphere of radius 1e-4
+    or 1e4, or one far from the origin for its size (float32 positions then a few 1e-7 of its
+    radius apart), culls clusters off screen, facing away and hidden, and draws the buffer drawn
+    without them, bit for bit, from random cameras outside and inside it."""
+    mesh = icosphere(6)
+    mesh.apply_scale(scale)
+    mesh.apply_translation([offset, -0.5 * offset, 0.25 * offset])
+    scene = scene_of(mesh)
+    positions, indices, clusters = uploaded(scene)
+    every_face = wp.array(np.ones(len(indices) // 3, np.uint8), dtype=wp.uint8)
+    totals = {"off_screen": 0, "occluded": 0, "facing_away": 0}
+    for i, camera in enumerate(random_cameras(scene, 8, seed=17)):
+        cam = camera_data(camera, 128, 96)
+        plain, culled, counts = buffers_with_and_without_clusters(positions, indices, clusters, cam,
+                                                                  spp=4 if i % 4 == 3 else 1,
+                                                                  cull=every_face if i % 2 else None)
+        np.testing.assert_array_equal(culled, plain)
+        for key in totals:
+            totals[key] += counts[key]
+    assert min(totals.values()) > 0, totals
