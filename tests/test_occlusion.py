@@ -225,6 +225,24 @@ OCCLUDING_SCENES = {
 }
 
 
+def culled_buffers_equal_unculled(scene, cameras, width, height):
+    """Asserts, camera after camera, the buffer drawn with the scene's clusters equal to the one
+    drawn without, bit for bit: 4 samples per pixel for every fourth camera, 1 for the others,
+    every other with back faces flagged for culling. Returns how many clusters were culled."""
+    positions, indices, clusters = uploaded(scene)
+    every_face = wp.array(np.ones(len(indices) // 3, np.uint8), dtype=wp.uint8)
+    totals = {"off_screen": 0, "occluded": 0, "facing_away": 0}
+    for i, camera in enumerate(cameras):
+        plain, culled, counts = buffers_with_and_without_clusters(positions, indices, clusters,
+                                                                  camera_data(camera, width, height),
+                                                                  spp=4 if i % 4 == 0 else 1,
+                                                                  cull=every_face if i % 2 else None)
+        np.testing.assert_array_equal(culled, plain)
+        for key in totals:
+            totals[key] += counts[key]
+    return totals
+
+
 @pytest.mark.parametrize("name", OCCLUDING_SCENES)
 def test_culling_clusters_leaves_the_buffer_unchanged(name):
     """Bit for bit, over random cameras (some inside the model), one and four samples per pixel,
@@ -232,18 +250,8 @@ def test_culling_clusters_leaves_the_buffer_unchanged(name):
     if name != "icosphere" and not ASSETS.exists():
         pytest.skip("shared assets not available")
     scene = OCCLUDING_SCENES[name]()
-    positions, indices, clusters = uploaded(scene)
-    every_face = wp.array(np.ones(len(indices) // 3, np.uint8), dtype=wp.uint8)
-    totals = {"off_screen": 0, "occluded": 0, "facing_away": 0}
-    for i, camera in enumerate(random_cameras(scene, 20, seed=5)):
-        # few samples for the triangles, so that the occlusion pass pays even for the small models
-        cam = camera_data(camera, 112, 84)
-        plain, culled, counts = buffers_with_and_without_clusters(positions, indices, clusters, cam,
-                                                                  spp=4 if i % 4 == 0 else 1,
-                                                                  cull=every_face if i % 2 else None)
-        np.testing.assert_array_equal(culled, plain)
-        for key in totals:
-            totals[key] += counts[key]
+    # few samples for the triangles, so that the occlusion pass pays even for the small models
+    totals = culled_buffers_equal_unculled(scene, random_cameras(scene, 20, seed=5), 112, 84)
     if name in ("icosphere", "bunny"):  # dense enough for every kind of culling
         assert min(totals.values()) > 0, totals
 
@@ -337,15 +345,5 @@ def test_culling_clusters_of_tiny_huge_and_far_meshes_leaves_the_buffer_unchange
     mesh.apply_scale(scale)
     mesh.apply_translation([offset, -0.5 * offset, 0.25 * offset])
     scene = scene_of(mesh)
-    positions, indices, clusters = uploaded(scene)
-    every_face = wp.array(np.ones(len(indices) // 3, np.uint8), dtype=wp.uint8)
-    totals = {"off_screen": 0, "occluded": 0, "facing_away": 0}
-    for i, camera in enumerate(random_cameras(scene, 8, seed=17)):
-        cam = camera_data(camera, 128, 96)
-        plain, culled, counts = buffers_with_and_without_clusters(positions, indices, clusters, cam,
-                                                                  spp=4 if i % 4 == 3 else 1,
-                                                                  cull=every_face if i % 2 else None)
-        np.testing.assert_array_equal(culled, plain)
-        for key in totals:
-            totals[key] += counts[key]
+    totals = culled_buffers_equal_unculled(scene, random_cameras(scene, 8, seed=17), 128, 96)
     assert min(totals.values()) > 0, totals
