@@ -5,7 +5,30 @@
 >>> pw.render(scene, pw.Camera.frame(scene), width=512, height=512).save("out.png")
 """
 
-from .brdf import BRDF
+def _load_checkout_subpackages():
+    """pbrwarp.kernels and pbrwarp.meshes are a checkout's top-level kernels/ and meshes/, which
+    pyproject.toml maps into the installed package. Run from the checkout's root (``python -m
+    pbrwarp``, the README's first command), this folder shadows the installed package and has
+    neither: load them from beside it, under the installed names."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parent
+    for name in ("kernels", "meshes"):
+        full_name = f"{__name__}.{name}"
+        init = here.parent / name / "__init__.py"
+        if full_name in sys.modules or (here / name).exists() or not init.is_file():
+            continue
+        spec = importlib.util.spec_from_file_location(full_name, init, submodule_search_locations=[str(init.parent)])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[full_name] = module
+        spec.loader.exec_module(module)
+
+
+_load_checkout_subpackages()
+
+from .brdf import BRDF  # noqa: E402 - after the subpackages it imports
 from .camera import Camera
 from .diagnostics import FrameCheck, check
 from .environment import Environment
