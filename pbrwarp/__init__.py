@@ -24,6 +24,7 @@ def _load_checkout_subpackages():
         module = importlib.util.module_from_spec(spec)
         sys.modules[full_name] = module
         spec.loader.exec_module(module)
+        globals()[name] = module  # as the import system binds a submodule it loads
 
 
 _load_checkout_subpackages()

@@ -151,3 +151,28 @@ def test_demo_scene_renders_finite_and_lit():
     assert srgb[hit].mean() > 40
     # well exposed: almost nothing clips to white under the default ACES tone map
     assert np.mean(srgb.min(axis=2) == 255) < 0.01
+
+
+def test_python_m_pbrwarp_runs_from_the_checkouts_root_without_an_editable_install(tmp_path):
+    """The README's first set-up command runs ``python -m pbrwarp`` in the checkout's root, where
+    the local pbrwarp/ folder shadows the installed package and lacks the kernels/ and meshes/
+    that pyproject.toml maps into it: the package loads them from the checkout. Here with the
+    editable install's finder removed, as after a plain ``pip install .``."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(pw.__file__).resolve().parent.parent
+    program = (
+        "import runpy, sys\n"
+        "sys.meta_path[:] = [f for f in sys.meta_path if 'editable' not in repr(f).lower()]\n"
+        "sys.path.insert(0, '')\n"
+        "import pbrwarp.kernels, pbrwarp.meshes\n"
+        "print('loaded:', pbrwarp.kernels.__file__, pbrwarp.meshes.__file__, flush=True)\n"
+        f"sys.argv = ['pbrwarp', 'demo', '-o', {str(tmp_path / 'demo.png')!r}, '--size', '64x36', '--spp', '1']\n"
+        "runpy.run_module('pbrwarp', run_name='__main__', alter_sys=True)\n")
+    done = subprocess.run([sys.executable, "-c", program], cwd=root, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    loaded = done.stdout.split("loaded:")[-1].split()[:2]
+    assert loaded == [str(root / "kernels" / "__init__.py"), str(root / "meshes" / "__init__.py")]
+    assert Image.open(tmp_path / "demo.png").size == (64, 36)
