@@ -6,6 +6,13 @@ import warp as wp
 
 wp.set_module_options({"enable_backward": False})
 
+# Vertices and samples are snapped to 1/4096 pixel: far below what the float32 ray caster
+# resolves, and coarse enough that edge functions fit int64 (see kernels/raster.py GUARD_BAND).
+SUBPIXEL_BITS = wp.constant(wp.int64(12))
+SUBPIXEL_SCALE = wp.constant(wp.float64(4096.0))
+PIXEL = wp.constant(wp.int64(4096))
+HALF_PIXEL = wp.constant(wp.int64(2048))
+
 
 @wp.struct
 class Projection:
@@ -77,20 +84,29 @@ SCREEN_TOLERANCE = wp.constant(wp.float64(1.0 / 1024.0))
 
 
 @wp.func
+def sampled_pixel_range(lo: wp.int64, hi: wp.int64, spp: int) -> wp.vec2i:
+    """First and last pixel with a sample in [lo, hi] (fixed point). With spp = 1 a pixel's sample
+    is its centre; with more it lies anywhere in [p, p + 1] (float32 p + offset may round up)."""
+    if spp == 1:
+        return wp.vec2i(int(-((HALF_PIXEL - lo) >> SUBPIXEL_BITS)), int((hi - HALF_PIXEL) >> SUBPIXEL_BITS))
+    return wp.vec2i(int((lo - wp.int64(1)) >> SUBPIXEL_BITS), int(hi >> SUBPIXEL_BITS))
+
+
+@wp.func
 def sampled_pixels_within(proj: Projection, bounds: wp.vec4d, spp: int) -> wp.vec4i:
     """Pixels of the image with a sample the rasterizer may find within screen bounds (min x,
-    min y, max x, max y) of projected vertices, as its sampled_pixel_range decides: with spp = 1
-    those whose centre lies there, with more those whose [p, p + 1] meets them; SCREEN_TOLERANCE
-    wider, clamped before the conversion to int (bounds may be huge or infinite)."""
+    min y, max x, max y) of projected vertices: sampled_pixel_range of the bounds SCREEN_TOLERANCE
+    wider, in fixed point (rounded outwards), clamped first (bounds may be huge or infinite)."""
     w = wp.float64(proj.width)
     h = wp.float64(proj.height)
-    offset = wp.float64(0.5)
-    if spp != 1:
-        offset = wp.float64(1.0)
-    x0 = int(wp.ceil(wp.clamp(bounds[0] - offset - SCREEN_TOLERANCE, wp.float64(-2.0), w + wp.float64(2.0))))
-    y0 = int(wp.ceil(wp.clamp(bounds[1] - offset - SCREEN_TOLERANCE, wp.float64(-2.0), h + wp.float64(2.0))))
-    if spp != 1:
-        offset = wp.float64(0.0)
-    x1 = int(wp.floor(wp.clamp(bounds[2] - offset + SCREEN_TOLERANCE, wp.float64(-2.0), w + wp.float64(2.0))))
-    y1 = int(wp.floor(wp.clamp(bounds[3] - offset + SCREEN_TOLERANCE, wp.float64(-2.0), h + wp.float64(2.0))))
-    return clamped_rect(x0, y0, x1, y1, proj.width, proj.height)
+    lo_x = wp.int64(wp.floor(wp.clamp(bounds[0] - SCREEN_TOLERANCE, wp.float64(-2.0), w + wp.float64(2.0))
+                             * SUBPIXEL_SCALE))
+    lo_y = wp.int64(wp.floor(wp.clamp(bounds[1] - SCREEN_TOLERANCE, wp.float64(-2.0), h + wp.float64(2.0))
+                             * SUBPIXEL_SCALE))
+    hi_x = wp.int64(wp.ceil(wp.clamp(bounds[2] + SCREEN_TOLERANCE, wp.float64(-2.0), w + wp.float64(2.0))
+                            * SUBPIXEL_SCALE))
+    hi_y = wp.int64(wp.ceil(wp.clamp(bounds[3] + SCREEN_TOLERANCE, wp.float64(-2.0), h + wp.float64(2.0))
+                            * SUBPIXEL_SCALE))
+    x = sampled_pixel_range(lo_x, hi_x, spp)
+    y = sampled_pixel_range(lo_y, hi_y, spp)
+    return clamped_rect(x[0], y[0], x[1], y[1], proj.width, proj.height)

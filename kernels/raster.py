@@ -27,7 +27,19 @@ away that the first pass does not hide.
 import warp as wp
 
 from .camera import CameraData, camera_ray_direction
-from .projection import Projection, camera_coordinates, clamped_rect, empty_rect, pixels_around, screen_point
+from .projection import (
+    HALF_PIXEL,
+    PIXEL,
+    SUBPIXEL_BITS,
+    SUBPIXEL_SCALE,
+    Projection,
+    camera_coordinates,
+    clamped_rect,
+    empty_rect,
+    pixels_around,
+    sampled_pixel_range,
+    screen_point,
+)
 from .sampling import multi_jittered_sample
 from .occlusion import (
     CLUSTER_SIZE,
@@ -49,15 +61,10 @@ NO_TRIANGLE = wp.constant(wp.uint64(0xFFFFFFFFFFFFFFFF))
 TRIANGLE_MASK = wp.constant(wp.uint64(0xFFFFFFFF))
 DEPTH_SHIFT = wp.constant(wp.uint64(32))
 
-# Vertices and samples are snapped to 1/4096 pixel: far below what the float32 ray caster
-# resolves, and coarse enough that edge functions fit int64 (see GUARD_BAND).
-SUBPIXEL_BITS = wp.constant(wp.int64(12))
-SUBPIXEL_SCALE = wp.constant(wp.float64(4096.0))
-PIXEL = wp.constant(wp.int64(4096))
-HALF_PIXEL = wp.constant(wp.int64(2048))
-# Largest |screen coordinate| in pixels a projected vertex may have. Snapped coordinates are then
-# below 2^29 and samples (images up to MAX_IMAGE_SIZE) below 2^28, so an edge function
-# A X + B Y + C stays below 2^61 and is computed exactly.
+# Largest |screen coordinate| in pixels a projected vertex may have. Snapped coordinates (to
+# 1/4096 pixel, kernels/projection.py SUBPIXEL_BITS) are then below 2^29 and samples (images up
+# to MAX_IMAGE_SIZE) below 2^28, so an edge function A X + B Y + C stays below 2^61 and is
+# computed exactly.
 GUARD_BAND = wp.constant(wp.float64(131072.0))
 # Snapped coordinates within the guard band plus 2^30 are positive, and below 2^31 (see
 # project_vertices).
@@ -296,15 +303,6 @@ def is_projected(q: wp.vec2i) -> bool:
 
 
 # ---------------------------------------------------------------------- screen rectangles
-@wp.func
-def sampled_pixel_range(lo: wp.int64, hi: wp.int64, spp: int) -> wp.vec2i:
-    """First and last pixel with a sample in [lo, hi] (fixed point). With spp = 1 a pixel's sample
-    is its centre; with more it lies anywhere in [p, p + 1] (float32 p + offset may round up)."""
-    if spp == 1:
-        return wp.vec2i(int(-((HALF_PIXEL - lo) >> SUBPIXEL_BITS)), int((hi - HALF_PIXEL) >> SUBPIXEL_BITS))
-    return wp.vec2i(int((lo - wp.int64(1)) >> SUBPIXEL_BITS), int(hi >> SUBPIXEL_BITS))
-
-
 @wp.func
 def projected_rect(q0: wp.vec2i, q1: wp.vec2i, q2: wp.vec2i, spp: int, width: int, height: int) -> wp.vec4i:
     """Pixels with samples a projected triangle may cover."""
