@@ -44,3 +44,10 @@ def empty(shape, dtype) -> wp.array:
         start = array.ptr & ~4095
         _MADVISE(start, array.ptr + size - start, MADV_HUGEPAGE)
     return array
+
+
+def zeros(shape, dtype) -> wp.array:
+    """wp.zeros(shape, dtype) on the CPU, its pages advised to be huge before they are zeroed."""
+    array = empty(shape, dtype)
+    array.zero_()
+    return array

@@ -81,8 +81,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
         views += light_projections
     cells = RESOLUTION * RESOLUTION
     # the large arrays on huge pages: their first touch would fault once per 4 KiB page
-    counts = huge_pages.empty(max(len(views), 1) * cells, wp.int32)
-    counts.zero_()
+    counts = huge_pages.zeros(max(len(views), 1) * cells, wp.int32)
 
     def count(v):
         wp.launch(lb.count_cells, dim=launch_threads(triangles), device="cpu",
@@ -114,8 +113,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     entries = max(total, 1)
     cell_faces = huge_pages.empty(entries, wp.int32)
     cell_near = huge_pages.empty(entries, float)
-    cell_clear = huge_pages.empty(entries, wp.uint8)
-    cell_clear.zero_()
+    cell_clear = huge_pages.zeros(entries, wp.uint8)
 
     def fill(v):
         wp.launch(lb.fill_cells, dim=launch_threads(triangles), device="cpu",
