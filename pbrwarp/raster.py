@@ -84,11 +84,11 @@ def _scratch_array(arrays: dict, kind: str, shape, dtype, zeroed: bool = False) 
 def _replay_launch(recorded: dict, key, kernel, inputs: list):
     """wp.launch(kernel, dim=1, inputs=inputs) on the CPU, replaying the launch recorded in
     ``recorded`` (one thread's _scratch.arrays) under ``key``, packed again but for the arrays
-    that are the very objects it last had (an array's memory never moves; a struct may have
-    been changed in place, so structs and scalars are always packed): packing
-    visibility_pipeline's 38 arguments costs ~0.12 ms a launch (development), a few percent of
-    a 512² call. The record keeps its last inputs (the caller's mesh and buffer arrays among
-    them) alive until the next call."""
+    that are the very objects it last had (an array's memory never moves) and the plain numbers
+    equal to the last ones; a struct may have been changed in place, so structs are always
+    packed: packing visibility_pipeline's 38 arguments costs ~0.12 ms a launch (development), a
+    few percent of a 512² call. The record keeps its last inputs (the caller's mesh and buffer
+    arrays among them) alive until the next call."""
     entry = recorded.get((key, "launch"))
     if entry is None:
         command = wp.launch(kernel, dim=1, device="cpu", inputs=inputs, record_cmd=True)
@@ -96,10 +96,18 @@ def _replay_launch(recorded: dict, key, kernel, inputs: list):
     else:
         command, last = entry
         for i, value in enumerate(inputs):
-            if not (isinstance(value, wp.array) and value is last[i]):
+            previous = last[i]
+            if isinstance(value, wp.array):
+                unchanged = value is previous
+            else:
+                unchanged = type(value) in _PLAIN_NUMBERS and type(previous) is type(value) and value == previous
+            if not unchanged:
                 command.set_param_at_index(i, value)
                 last[i] = value
     command.launch()
+
+
+_PLAIN_NUMBERS = (int, float, bool)
 
 
 # Cost models for choosing between rasterizing and ray casting primary visibility, fitted on 2
@@ -134,10 +142,17 @@ def _tile_stride(tiles: int) -> int:
     return stride % max(tiles, 1) or 1
 
 
+_kernels_loaded = False
+
+
 def _load_kernels():
-    # compile or load every kernel once, before pool threads would each try at once
-    for kernel in KERNELS:
-        load_for_cpu(kernel)
+    # compile or load every kernel once, before pool threads would each try at once (after that
+    # the check alone cost ~40 us of a call with the caches cold from a large frame)
+    global _kernels_loaded
+    if not _kernels_loaded:
+        for kernel in KERNELS:
+            load_for_cpu(kernel)
+        _kernels_loaded = True
 
 
 @functools.cache
@@ -228,14 +243,18 @@ def sample_positions(width: int, height: int, spp: int = 1, grid_m: int = 1, gri
 def projection(cam: CameraData, orthographic: bool = False) -> rk.Projection:
     """World-to-screen mapping of ``cam`` in float64, the exact inverse of camera_ray_direction;
     or, ``orthographic``, the parallel projection along cam.forward whose view spans
-    cam.right and cam.up (half-extents in world units) about cam.eye."""
-    axes = np.array([cam.right, cam.up, cam.forward], dtype=np.float64).T
-    det = np.linalg.det(axes) if np.all(np.isfinite(axes)) else np.nan
-    if not abs(det) >= 1e-300:
+    cam.right and cam.up (half-extents in world units) about cam.eye. In plain Python floats:
+    NumPy's 3x3 inverse and determinant (LAPACK) took ~0.1-0.35 ms of every visibility_buffer
+    call (development measurement, the longer after a large frame had left the caches cold)."""
+    a, b, c = (tuple(float(x) for x in axis) for axis in (cam.right, cam.up, cam.forward))
+    # the inverse of the matrix of columns a, b, c has rows b x c, c x a, a x b over det
+    rows = (_cross(b, c), _cross(c, a), _cross(a, b))
+    det = a[0] * rows[0][0] + a[1] * rows[0][1] + a[2] * rows[0][2]
+    if not (all(math.isfinite(x) for x in a + b + c) and abs(det) >= 1e-300):
         raise InputError("camera axes must be finite and linearly independent")
     proj = rk.Projection()
-    proj.eye = wp.vec3d(*np.array(cam.eye, dtype=np.float64))
-    proj.to_camera = wp.mat33d(*np.linalg.inv(axes).reshape(-1))
+    proj.eye = wp.vec3d(*(float(x) for x in cam.eye))
+    proj.to_camera = wp.mat33d(*(x / det for row in rows for x in row))
     proj.half_width = 0.5 * cam.width
     proj.half_height = 0.5 * cam.height
     proj.width, proj.height = cam.width, cam.height
@@ -244,6 +263,10 @@ def projection(cam: CameraData, orthographic: bool = False) -> rk.Projection:
     # the sign of det(axes) (screen y points down)
     proj.back_facing_sign = -1 if det > 0 else 1
     return proj
+
+
+def _cross(u: tuple, v: tuple) -> tuple:
+    return (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
 
 
 def _check_sampling(width, height, spp, grid_m, grid_n, seed):
@@ -275,6 +298,70 @@ def _check_geometry(positions, indices) -> tuple[int, int]:
     if len(indices) % 3:
         raise InputError(f"indices must hold 3 per triangle, got {len(indices)}")
     return len(positions), len(indices) // 3
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """What a visibility_buffer call of one shape (mesh and image sizes, spp, threads, clusters)
+    works with: its chunking and tiling, and its scratch arrays (views of _scratch_array's)."""
+
+    tiles_x: int
+    tiles: int
+    chunk_size: int
+    chunk_stride: int
+    tile_stride: int
+    screen: wp.array
+    depth_weights: wp.array
+    binned_face: wp.array
+    binned_rect: wp.array
+    cursors: wp.array
+    bin_start: wp.array
+    bin_total: wp.array
+    cluster_rect: wp.array
+    cluster_nearest: wp.array
+    # one block, zeroed before each call, holding binned_count, bad_indices, sync and tile_counts
+    zeroed: wp.array
+    binned_count: wp.array
+    bad_indices: wp.array
+    sync: wp.array
+    tile_counts: wp.array
+
+
+def _call_layout(scratch: dict, vertices: int, triangles: int, width: int, height: int, spp: int, threads: int,
+                 cluster_count: int) -> _Layout:
+    """The _Layout of a call of this shape on the calling thread (``scratch`` its
+    _scratch.arrays), the last one kept for the next call: building it, a few dozen small
+    Python steps, took ~0.1 ms of a call with the caches cold from a large frame (development)."""
+    key = (vertices, triangles, width, height, spp, threads, cluster_count)
+    last = scratch.get("layout")
+    if last is not None and last[0] == key:
+        return last[1]
+    tiles_x = math.ceil(width / TILE_SIZE)
+    tiles = tiles_x * math.ceil(height / TILE_SIZE)
+    # chunks of triangles taken from a queue, several per thread so that none waits for another
+    chunk_size = max(MIN_CHUNK, math.ceil(triangles / (threads * CHUNKS_PER_THREAD)))
+    chunk_size = math.ceil(chunk_size / CLUSTER_SIZE) * CLUSTER_SIZE  # whole clusters
+    chunk_count = max(math.ceil(triangles / chunk_size), 1)
+    sync_slots = int(rk.SYNC_SLOTS)
+    zeroed = _scratch_array(scratch, "zeroed", 2 * chunk_count + sync_slots + chunk_count * tiles, wp.int32)
+    counts_end = 2 * chunk_count + sync_slots
+    layout = _Layout(
+        tiles_x=tiles_x, tiles=tiles, chunk_size=chunk_size, chunk_stride=math.ceil(chunk_count / threads),
+        tile_stride=_tile_stride(tiles),
+        screen=_scratch_array(scratch, "screen", vertices, wp.vec2i),
+        depth_weights=_scratch_array(scratch, "depth_weights", vertices, wp.float64),
+        binned_face=_scratch_array(scratch, "binned_face", triangles, wp.int32),
+        binned_rect=_scratch_array(scratch, "binned_rect", triangles, wp.vec4i),
+        cursors=_scratch_array(scratch, "cursors", (chunk_count, tiles), wp.int32),
+        bin_start=_scratch_array(scratch, "bin_start", tiles + 1, wp.int32),
+        # written by the pipeline before it is read
+        bin_total=_scratch_array(scratch, "bin_total", 1, wp.int64),
+        cluster_rect=_scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i),
+        cluster_nearest=_scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64),
+        zeroed=zeroed, binned_count=zeroed[:chunk_count], bad_indices=zeroed[chunk_count:2 * chunk_count],
+        sync=zeroed[2 * chunk_count:counts_end], tile_counts=zeroed[counts_end:].reshape((chunk_count, tiles)))
+    scratch["layout"] = (key, layout)
+    return layout
 
 
 def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, spp: int = 1, grid_m: int = 1,
@@ -347,31 +434,15 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     samples = _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads)
     t_samples = time.perf_counter()
 
-    tiles_x = math.ceil(width / TILE_SIZE)
-    tiles = tiles_x * math.ceil(height / TILE_SIZE)
-    # chunks of triangles taken from a queue, several per thread so that none waits for another
-    chunk_size = max(MIN_CHUNK, math.ceil(triangles / (threads * CHUNKS_PER_THREAD)))
-    chunk_size = math.ceil(chunk_size / CLUSTER_SIZE) * CLUSTER_SIZE  # whole clusters
-    chunk_count = max(math.ceil(triangles / chunk_size), 1)
     scratch = _scratch.arrays  # the calling thread's
-    screen = _scratch_array(scratch, "screen", vertices, wp.vec2i)
-    depth_weights = _scratch_array(scratch, "depth_weights", vertices, wp.float64)
-    binned_face = _scratch_array(scratch, "binned_face", triangles, wp.int32)
-    binned_rect = _scratch_array(scratch, "binned_rect", triangles, wp.vec4i)
+    cluster_count = len(clusters) if clusters is not None else 0
+    layout = _call_layout(scratch, vertices, triangles, width, height, spp, threads, cluster_count)
+    layout.zeroed.zero_()
     # as long as the longest bins so far (a second pass grows them when a frame needs more)
     bins = scratch.get("bins")
     if bins is None:
-        bins = scratch["bins"] = wp.empty(max(triangles, tiles), dtype=wp.int32, device="cpu")
-    binned_count = _scratch_array(scratch, "binned_count", chunk_count, wp.int32, zeroed=True)
-    tile_counts = _scratch_array(scratch, "tile_counts", (chunk_count, tiles), wp.int32, zeroed=True)
-    bad_indices = _scratch_array(scratch, "bad_indices", chunk_count, wp.int32, zeroed=True)
-    cursors = _scratch_array(scratch, "cursors", (chunk_count, tiles), wp.int32)
-    bin_start = _scratch_array(scratch, "bin_start", tiles + 1, wp.int32)
-    bin_total = _scratch_array(scratch, "bin_total", 1, wp.int64, zeroed=True)
-    sync = _scratch_array(scratch, "sync", int(rk.SYNC_SLOTS), wp.int32, zeroed=True)
-    cluster_count = len(clusters) if clusters is not None else 0
-    cluster_rect = _scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i)
-    cluster_nearest = _scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64)
+        bins = scratch["bins"] = wp.empty(max(triangles, layout.tiles), dtype=wp.int32, device="cpu")
+    sync = layout.sync
     if cluster_count:
         cluster_arrays = [clusters.lower, clusters.upper, clusters.axis, clusters.spread]
     else:
@@ -384,11 +455,12 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
             try:
                 _replay_launch(scratch, ("pipeline", k), rk.visibility_pipeline,
                                [k, threads, first_stage, int(stop_after_binning), _os_yield_address(), positions,
-                                indices, vertices, screen, depth_weights, cam, proj, samples, spp, MIN_CHUNK,
-                                chunk_size, math.ceil(chunk_count / threads), triangles, tiles_x, _tile_stride(tiles),
-                                cull_back_faces, binned_count, binned_face, binned_rect, tile_counts, bad_indices,
-                                cursors, bin_start, bin_total, bins, *cluster_arrays, cluster_rect, cluster_nearest,
-                                sync, out])
+                                indices, vertices, layout.screen, layout.depth_weights, cam, proj, samples, spp,
+                                MIN_CHUNK, layout.chunk_size, layout.chunk_stride, triangles, layout.tiles_x,
+                                layout.tile_stride, cull_back_faces, layout.binned_count, layout.binned_face,
+                                layout.binned_rect, layout.tile_counts, layout.bad_indices, layout.cursors,
+                                layout.bin_start, layout.bin_total, bins, *cluster_arrays, layout.cluster_rect,
+                                layout.cluster_nearest, sync, out])
             except BaseException:
                 sync.numpy()[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one
                 raise
@@ -402,7 +474,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
         raise _index_out_of_range(indices.numpy(), vertices)
     t_binned = time.perf_counter()
     if outcome == int(rk.BINS_TOO_SMALL):
-        total = int(bin_total.numpy()[0])
+        total = int(layout.bin_total.numpy()[0])
         if total >= 2**31:
             raise InputError(f"too many triangle-tile pairs ({total}) for int32 bins")
         bins = scratch["bins"] = wp.empty(total, dtype=wp.int32, device="cpu")

@@ -576,8 +576,9 @@ def test_calls_from_several_python_threads_take_turns_and_agree():
 def test_a_call_does_not_depend_on_what_earlier_calls_left_in_the_threads_scratch():
     """visibility_buffer keeps its working arrays per calling thread: calls in turn on one thread,
     with meshes, image sizes, sample counts, thread counts and clusters changing from call to
-    call (the arrays grow, shrink back and keep views), give the buffers that the same calls give
-    each on a fresh thread, whose scratch is empty."""
+    call (the arrays grow, shrink back and keep views; a call of the last call's shape reuses its
+    layout), give the buffers that the same calls give each on a fresh thread, whose scratch is
+    empty."""
     import threading
     from pbrwarp.raster import triangle_clusters
 
@@ -585,8 +586,9 @@ def test_a_call_does_not_depend_on_what_earlier_calls_left_in_the_threads_scratc
     calls = []
     for k, (geom, width, height, spp, threads, clustered) in enumerate([
             (large, 160, 120, 1, 2, True), (small, 48, 40, 4, 1, False), (large, 64, 200, 1, 3, False),
-            (small, 200, 150, 1, 2, True), (large, 160, 120, 1, 2, True), (small, 48, 40, 4, 2, True)]):
-        camera = list(random_cameras(scene_of(icosphere(2)), 6, seed=11))[k]
+            (small, 200, 150, 1, 2, True), (large, 160, 120, 1, 2, True), (large, 160, 120, 1, 2, True),
+            (small, 48, 40, 4, 2, True)]):
+        camera = list(random_cameras(scene_of(icosphere(2)), 7, seed=11))[k]
         clusters = triangle_clusters(geom.positions, geom.indices) if clustered else None
         calls.append((geom, camera_data(camera, width, height), spp, threads, clusters))
 
@@ -644,7 +646,8 @@ def camera_sum(cam: CameraData, scale: float, values: wp.array(dtype=float), out
 
 def test_replayed_launches_pack_again_all_but_the_same_arrays():
     """_replay_launch, the raster's way to skip packing unchanged arguments: a struct changed in
-    place, a new scalar, an array changed in place and another array each show in the result."""
+    place, a new scalar, an array changed in place and another array each show in the result;
+    the same array and an equal number are not packed again."""
     from pbrwarp.raster import _replay_launch
 
     recorded = {}
@@ -663,6 +666,13 @@ def test_replayed_launches_pack_again_all_but_the_same_arrays():
     values.numpy()[0] = 200.0
     assert result(1.0, values) == 222.0
     assert result(1.0, wp.array([300.0], dtype=float)) == 322.0
+    # of the same arguments again, only the struct is packed (the same array, an equal number)
+    command, _ = recorded[("sum", "launch")]
+    packed = []
+    original = command.set_param_at_index
+    command.set_param_at_index = lambda index, value: (packed.append(index), original(index, value))
+    last_values = recorded[("sum", "launch")][1][2]
+    assert result(1.0, last_values) == 322.0 and packed == [0]
 
 
 def test_back_face_culling_drops_exactly_the_faces_turned_away():
@@ -830,6 +840,33 @@ def test_vertex_projection_against_float64(orthographic):
         np.testing.assert_allclose(q[shown, 1] / pixels, y[shown], rtol=0, atol=0.5 / pixels + 1e-9 * np.abs(y[shown]).max())
         # (z near the camera plane is a difference of the coordinates' magnitude, ~5: 1e-15 of that)
         np.testing.assert_allclose(w[shown], weight[shown], rtol=1e-12, atol=1e-14)
+
+
+def test_projection_inverts_the_camera_axes_and_rejects_degenerate_ones():
+    """to_camera is the float64 inverse of the matrix of the camera's scaled axes (columns right,
+    up, forward) for a tilted, non-square and a mirrored camera; the back-facing sign follows the
+    handedness; axes that are not finite or not independent are refused with a clear error."""
+    for camera, size, mirrored in ((pw.Camera.look_at((0.3, -0.2, 4.0), (0.0, 0.0, 0.0), up=(0.2, 1.0, 0.1),
+                                                      fov_y=60.0), (640, 480), False),
+                                   (pw.Camera.look_at((5.0, 1.0, -2.0), (0.0, 0.5, 0.0), fov_y=20.0), (31, 977), False)):
+        cam = camera_data(camera, *size)
+        axes = np.array([cam.right, cam.up, cam.forward], np.float64).T
+        proj = projection(cam)
+        to_camera = np.array(proj.to_camera, np.float64).reshape(3, 3)
+        # float64 rounding, the axes' lengths differing (aspect ratio, field of view)
+        tolerance = 4e-16 * np.linalg.cond(axes)
+        np.testing.assert_allclose(to_camera @ axes, np.eye(3), rtol=0, atol=tolerance)
+        np.testing.assert_allclose(to_camera, np.linalg.inv(axes), rtol=tolerance, atol=tolerance * np.abs(to_camera).max())
+        assert proj.back_facing_sign == (1 if np.linalg.det(axes) < 0 else -1)
+        assert (proj.width, proj.height, proj.half_width, proj.half_height) == (size[0], size[1], size[0] / 2,
+                                                                                size[1] / 2)
+        cam.right = -np.asarray(cam.right)  # a mirror image: the other handedness
+        assert projection(cam).back_facing_sign == -proj.back_facing_sign
+    for bad in ((1.0, 0.0, 0.0), (float("nan"), 0.0, 0.0), (float("inf"), 1.0, 0.0)):
+        cam = camera_data(pw.Camera.look_at((0.0, 0.0, 4.0), (0.0, 0.0, 0.0)), 64, 64)
+        cam.up = wp.vec3(*bad)  # along right, or not finite
+        with pytest.raises(pw.InputError, match="camera axes must be finite and linearly independent"):
+            projection(cam)
 
 
 @wp.kernel
