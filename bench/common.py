@@ -14,6 +14,60 @@ from pathlib import Path
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
+def _arithmetic_kernel():
+    import warp as wp
+
+    @wp.kernel(enable_backward=False, module="unique")
+    def dependent_arithmetic(steps: int, out: wp.array(dtype=float)):
+        # a chain of dependent square roots: compute only, nothing read or written on the way
+        x = float(1.0)
+        for _ in range(steps):
+            x = wp.sqrt(x * x * 0.999999 + 1.0e-7)
+        out[0] = x
+
+    return dependent_arithmetic
+
+
+class DivisibleWork:
+    """The machine's own yardstick for multicore speedups: a compute-only Warp kernel lasting
+    ``seconds`` on one thread (calibrated), or split in equal parts over ``threads`` launches side
+    by side through pbrwarp.parallel.run_together, as the raster's are. Its speedup is what a
+    perfectly divisible kernel of that length gets here, the pool thread's start and this shared
+    machine's noise included."""
+
+    def __init__(self, seconds: float, threads: int):
+        import warp as wp
+
+        self.kernel = _arithmetic_kernel()
+        self.threads = threads
+        self.outs = [wp.zeros(1, dtype=float, device="cpu") for _ in range(threads)]
+        self.steps = 1 << 16
+        self.one()  # compiled or loaded
+        calibration = 1 << 20
+        t0 = time.perf_counter()
+        self._launch(0, calibration)
+        self.steps = max(threads, round(seconds * calibration / (time.perf_counter() - t0)))
+
+    def _launch(self, k: int, steps: int):
+        import warp as wp
+
+        wp.launch(self.kernel, dim=1, inputs=[steps, self.outs[k]], device="cpu")
+
+    def one(self):
+        self._launch(0, self.steps)
+
+    def split(self):
+        from pbrwarp.parallel import run_together
+
+        run_together(lambda k: self._launch(k, self.steps // self.threads), self.threads)
+
+    def wake(self):
+        """Run a moment on every thread, so that the pool thread is awake for the next call."""
+        from pbrwarp.parallel import run_together
+
+        run_together(lambda k: self._launch(k, 1), self.threads)
+
+
 def median_time(fn, repeats: int = 5, warmup: int = 1) -> float:
     """Median wall time of ``fn()`` over ``repeats`` runs after ``warmup`` untimed runs."""
     for _ in range(warmup):

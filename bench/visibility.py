@@ -34,7 +34,7 @@ import numpy as np
 import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from common import command_line, median_time, write_results  # noqa: E402
+from common import DivisibleWork, command_line, median_time, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp.gpu_scene import upload  # noqa: E402
@@ -99,26 +99,42 @@ def bench_case(label, mesh, size, repeats, threads_all):
         return visibility_buffer(geometry.positions, geometry.indices, cam, threads=threads, out=out, timings=timings,
                                  cull_back_faces=cull, clusters=clusters, counts=counts)
 
-    # 1 and all threads, reused and new buffer, with and without clusters, in turn, so that a
-    # burst of load on this shared machine slows every variant alike rather than one of them
-    # (their ratios matter)
-    variants = {f"raster_ms_{threads}t": (threads, buffer, None, geometry.clusters)
-                for threads in sorted({1, threads_all})}
-    variants[f"raster_new_buffer_ms_{threads_all}t"] = (threads_all, None, None, geometry.clusters)
-    variants[f"raster_culled_ms_{threads_all}t"] = (threads_all, buffer, every_face, geometry.clusters)
-    variants[f"raster_without_clusters_ms_{threads_all}t"] = (threads_all, buffer, None, None)
-    times = {key: [] for key in variants}
+    # In each round: one thread; all threads right after it (the pool thread asleep, as after any
+    # pause); the divisible yardstick on one thread; then, the pool awake (as in a frame, whose
+    # other stages keep it busy), all threads with reused and new buffers, with and without
+    # clusters, and the yardstick, in turn, so that a burst of load on this shared machine slows
+    # every variant alike rather than one of them (their ratios matter).
+    raster(1)
+    clock = time.perf_counter()
+    raster(1)
+    yardstick = DivisibleWork(time.perf_counter() - clock, threads_all)
+    awake = {f"raster_ms_{threads_all}t": (threads_all, buffer, None, geometry.clusters),
+             f"raster_new_buffer_ms_{threads_all}t": (threads_all, None, None, geometry.clusters),
+             f"raster_culled_ms_{threads_all}t": (threads_all, buffer, every_face, geometry.clusters),
+             f"raster_without_clusters_ms_{threads_all}t": (threads_all, buffer, None, None),
+             f"divisible_ms_{threads_all}t": None}
+    times = {key: [] for key in ["raster_ms_1t", f"raster_after_one_thread_ms_{threads_all}t", "divisible_ms_1t",
+                                 *awake]}
     splits = []
-    keys = list(variants)
+
+    def timed(key, fn):
+        t0 = time.perf_counter()
+        fn()
+        if repeat:
+            times[key].append(time.perf_counter() - t0)
+
+    keys = list(awake)
     for repeat in range(repeats + 1):  # the first round warms up
-        # each round starts one variant later: the call after a one-thread call pays for waking the
-        # idle second core, which would otherwise always fall on the same variant
+        timed("raster_ms_1t", lambda: raster(1))
+        timed(f"raster_after_one_thread_ms_{threads_all}t", lambda: raster(threads_all))
+        timed("divisible_ms_1t", yardstick.one)
+        yardstick.wake()
         for key in keys[repeat % len(keys):] + keys[:repeat % len(keys)]:
-            threads, out, cull, clusters = variants[key]
-            t0 = time.perf_counter()
-            raster(threads, out, None, cull, clusters)
-            if repeat:
-                times[key].append(time.perf_counter() - t0)
+            if awake[key] is None:
+                timed(key, yardstick.split)
+            else:
+                threads, out, cull, clusters = awake[key]
+                timed(key, lambda: raster(threads, out, None, cull, clusters))
         # the split in a call of its own, as timing the parts apart stops the launches between them
         split = {}
         raster(threads_all, buffer, split)
@@ -156,12 +172,14 @@ def bench_case(label, mesh, size, repeats, threads_all):
         row["embree_ms"] = 1e3 * median_time(lambda: o3d.cast_rays(rays), repeats)
 
     for key in [k for k in row if k.endswith("_ms") or "_ms_" in k]:
-        if key not in ("binning_ms", "rasterization_ms"):
+        if key not in ("binning_ms", "rasterization_ms") and not key.startswith("divisible"):
             row[key.replace("_ms", "_msamples_per_s")] = samples / row[key] / 1e3
     if "embree_ms" in row:
         row["raster_to_embree"] = row["embree_ms"] / row[f"raster_ms_{threads_all}t"]
         row["culled_raster_to_embree"] = row["embree_ms"] / row[f"raster_culled_ms_{threads_all}t"]
     row["raster_speedup"] = row["raster_ms_1t"] / row[f"raster_ms_{threads_all}t"]
+    row["raster_speedup_after_one_thread"] = row["raster_ms_1t"] / row[f"raster_after_one_thread_ms_{threads_all}t"]
+    row["divisible_speedup"] = row["divisible_ms_1t"] / row[f"divisible_ms_{threads_all}t"]
     return row
 
 
@@ -185,11 +203,12 @@ def fit_cost_models(rows, threads_all):
 def markdown(rows, model, threads_all):
     t = threads_all
     lines = [
-        f"| mesh | triangles | size | raster ms 1t / {t}t | speedup | {t}t with a new buffer | binning / rasterization ms {t}t | "
+        f"| mesh | triangles | size | raster ms 1t / {t}t | speedup (right after a 1t call) | divisible kernel's speedup | "
+        f"{t}t with a new buffer | binning / rasterization ms {t}t | "
         f"without clusters ms {t}t | back faces culled ms {t}t | ray cast ms {t}t | Embree ms | "
         f"raster / ray cast / Embree Msamples/s | raster ÷ Embree (culled) | clusters occluded (culled: facing away + occluded) | "
         f"model raster / ray cast ms | coverage | same triangle (culled) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         embree_ms = f"{r['embree_ms']:.1f}" if "embree_ms" in r else "n/a"
@@ -198,7 +217,8 @@ def markdown(rows, model, threads_all):
                  else "n/a")
         lines.append(
             f"| {r['mesh']} | {r['triangles']:,} | {r['size']}² | {r['raster_ms_1t']:.1f} / {r[f'raster_ms_{t}t']:.1f} | "
-            f"{r['raster_speedup']:.2f}x | {r[f'raster_new_buffer_ms_{t}t']:.1f} | {r['binning_ms']:.1f} / {r['rasterization_ms']:.1f} | "
+            f"{r['raster_speedup']:.2f}x ({r['raster_speedup_after_one_thread']:.2f}x) | {r['divisible_speedup']:.2f}x | "
+            f"{r[f'raster_new_buffer_ms_{t}t']:.1f} | {r['binning_ms']:.1f} / {r['rasterization_ms']:.1f} | "
             f"{r[f'raster_without_clusters_ms_{t}t']:.1f} | "
             f"{r[f'raster_culled_ms_{t}t']:.1f} | {r[f'raycast_ms_{t}t']:.1f} | {embree_ms} | "
             f"{r[f'raster_msamples_per_s_{t}t']:.1f} / {r[f'raycast_msamples_per_s_{t}t']:.1f} / {embree_rate} | {ratio} | "
@@ -215,8 +235,12 @@ def markdown(rows, model, threads_all):
         "positions cached, output buffer reused (out=) except in the new-buffer column, whose fresh pages "
         f"page-fault, with the mesh's clusters of {CLUSTER_SIZE} triangles culled where they lie off screen, face away "
         "(if flagged) or lie behind what the clusters facing the eye drew (clusters=, as pw.render passes "
-        "them) except in the without-clusters column; the five raster variants are timed in turn, round "
-        "after round. Clusters occluded: the fraction culled as hidden; in brackets, with back faces culled, "
+        "them) except in the without-clusters column. Each round times one thread, then all threads right after "
+        "it (in brackets under speedup: the pool thread asleep, its start, ~0.2-0.4 ms on this virtual machine, "
+        "delaying its share), then, with the pool awake as a frame's other stages keep it, the other raster "
+        "variants and the divisible kernel in turn, round after round. Divisible kernel: a compute-only Warp "
+        "kernel as long on one thread as the row's raster, split in equal parts over the threads through the "
+        "same pool: the speedup a perfectly divisible kernel of that length gets on this machine. Clusters occluded: the fraction culled as hidden; in brackets, with back faces culled, "
         "those culled as facing away and as hidden. Back faces culled: every "
         "triangle flagged in cull_back_faces, as pw.render flags single-sided meshes and closed ones seen from "
         "outside (the icospheres are closed; the others stand for single-sided meshes). Ray cast: "
