@@ -785,14 +785,14 @@ def lowest_set_bit(mask: wp.uint64) -> int:
 @wp.func
 def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), vertex_count: int,
                    screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64), proj: Projection,
-                   samples: wp.array2d(dtype=wp.vec2), spp: int, face: int, chunk: int, tiles_x: int,
+                   samples: wp.array2d(dtype=wp.vec2), spp: int, face: int, owner: int, tiles_x: int,
                    cull_back_faces: wp.array(dtype=wp.uint8), first: int, binned_count: wp.array(dtype=wp.int32),
                    binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
                    tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
                    out: wp.array2d(dtype=wp.uint64)):
     c = triangle_corners(indices, face)
     if not are_valid_indices(c, vertex_count):
-        bad_indices[chunk] = 1
+        bad_indices[owner] = 1
         return
     q0 = screen[c[0]]
     q1 = screen[c[1]]
@@ -830,44 +830,44 @@ def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=w
         r = clipped_rect(proj, positions[c[0]], positions[c[1]], positions[c[2]])
         if r[0] > r[2]:
             return
-    # a CPU launch runs its threads one after another, so this chunk's count needs no atomics
-    slot = first + binned_count[chunk]
-    binned_count[chunk] = binned_count[chunk] + 1
+    # the owner is the launch drawing this triangle: its list and counts need no atomics
+    slot = first + binned_count[owner]
+    binned_count[owner] = binned_count[owner] + 1
     binned_face[slot] = face
     binned_rect[slot] = r
     for ty in range(r[1] / TILE_SIZE, r[3] / TILE_SIZE + 1):
         for tx in range(r[0] / TILE_SIZE, r[2] / TILE_SIZE + 1):
             tile = ty * tiles_x + tx
-            tile_counts[chunk, tile] = tile_counts[chunk, tile] + 1
+            tile_counts[owner, tile] = tile_counts[owner, tile] + 1
 
 
 @wp.func
 def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dtype=wp.int32),
                 bin_start: wp.array(dtype=wp.int32), total: wp.array(dtype=wp.int64)):
-    """Run by one thread: bins are contiguous per tile, each chunk's part after the previous
-    chunks'. bin_start[tile] is where a tile's bin starts, cursors[chunk, tile] where a chunk's
-    part of it does, total[0] the length of all bins (exact in int64; offsets are meaningful only
-    if it is below 2^31)."""
+    """Run by one thread: bins are contiguous per tile, each owner's part (the triangles a launch
+    binned) after the previous owners'. bin_start[tile] is where a tile's bin starts,
+    cursors[owner, tile] where an owner's part of it does, total[0] the length of all bins (exact
+    in int64; offsets are meaningful only if it is below 2^31)."""
     end = wp.int64(0)
     for tile in range(tile_counts.shape[1]):
         bin_start[tile] = int(end)
-        for chunk in range(tile_counts.shape[0]):
-            cursors[chunk, tile] = int(end)
-            end = end + wp.int64(tile_counts[chunk, tile])
+        for owner in range(tile_counts.shape[0]):
+            cursors[owner, tile] = int(end)
+            end = end + wp.int64(tile_counts[owner, tile])
     bin_start[tile_counts.shape[1]] = int(end)
     total[0] = end
 
 
 @wp.func
-def bin_triangle(binned_rect: wp.array(dtype=wp.vec4i), slot: int, chunk: int, tiles_x: int,
+def bin_triangle(binned_rect: wp.array(dtype=wp.vec4i), slot: int, owner: int, tiles_x: int,
                  cursors: wp.array2d(dtype=wp.int32), bins: wp.array(dtype=wp.int32)):
     r = binned_rect[slot]
     for ty in range(r[1] / TILE_SIZE, r[3] / TILE_SIZE + 1):
         for tx in range(r[0] / TILE_SIZE, r[2] / TILE_SIZE + 1):
             tile = ty * tiles_x + tx
-            at = cursors[chunk, tile]
+            at = cursors[owner, tile]
             bins[at] = slot
-            cursors[chunk, tile] = at + 1
+            cursors[owner, tile] = at + 1
 
 
 @wp.func
@@ -912,7 +912,7 @@ def rasterize_tile(tile: int, positions: wp.array(dtype=wp.vec3), indices: wp.ar
 # Slots of the int32 ``sync`` array shared by a call's launches: the work queues of binning,
 # filling and tiles; one arrival counter per barrier; the abort flag (set from Python when a
 # launch fails to start, lest the others wait for it forever); the outcome of binning.
-QUEUE_CHUNKS = wp.constant(0)
+QUEUE_BATCHES = wp.constant(0)
 QUEUE_FILL = wp.constant(1)
 QUEUE_TILES = wp.constant(2)
 BARRIER_PROJECTED = wp.constant(3)
@@ -921,7 +921,7 @@ BARRIER_OFFSETS = wp.constant(5)
 BARRIER_FILLED = wp.constant(6)
 ABORTED = wp.constant(7)
 OUTCOME = wp.constant(8)
-# with occlusion culling: the queue of the deferred clusters' chunks, one more barrier, and how
+# with occlusion culling: the queue of the deferred clusters' batches, one more barrier, and how
 # many clusters were off screen, deferred, then found occluded, and culled as facing away
 QUEUE_DEFERRED = wp.constant(9)
 BARRIER_DRAWN_FIRST = wp.constant(10)
@@ -992,7 +992,7 @@ def share(n: int, parts: int, minimum: int) -> int:
     return wp.max(minimum, (n + parts - 1) / parts)
 
 
-# What a pass over the chunks draws: every triangle (no clusters); the clusters not culled, in one
+# What a pass over the batches draws: every triangle (no clusters); the clusters not culled, in one
 # pass; or in two, first the clusters that cannot be tested or face the eye (the others
 # deferred), then the deferred ones not occluded.
 DRAW_ALL = wp.constant(0)
@@ -1034,21 +1034,22 @@ def occlusion_pass_pays(proj: Projection, cluster_lower: wp.array(dtype=wp.vec3)
 
 
 @wp.func
-def count_chunk(draw: int, chunk: int, positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32),
-                vertex_count: int, screen: wp.array(dtype=wp.vec2i), depth_weights: wp.array(dtype=wp.float64),
-                proj: Projection, samples: wp.array2d(dtype=wp.vec2), spp: int, chunk_size: int, triangles: int,
-                tiles_x: int, cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
-                binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
-                tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
-                cluster_lower: wp.array(dtype=wp.vec3), cluster_upper: wp.array(dtype=wp.vec3),
-                cluster_axis: wp.array(dtype=wp.vec3), cluster_spread: wp.array(dtype=float),
-                cluster_rect: wp.array(dtype=wp.vec4i), cluster_nearest: wp.array(dtype=wp.float64),
-                sync: wp.array(dtype=wp.int32), out: wp.array2d(dtype=wp.uint64)):
-    """count_triangle for the triangles of ``chunk`` that pass ``draw`` (DRAW_ALL, ...), cluster
-    by cluster; DRAW_FIRST records the deferred clusters' rectangles and nearest depths, and the
-    counts of clusters off screen, facing away, deferred and occluded go to ``sync``."""
-    end = wp.min((chunk + 1) * chunk_size, triangles)
-    first_cluster = chunk * chunk_size / CLUSTER_SIZE
+def count_batch(draw: int, batch: int, owner: int, positions: wp.array(dtype=wp.vec3),
+                indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
+                depth_weights: wp.array(dtype=wp.float64), proj: Projection, samples: wp.array2d(dtype=wp.vec2),
+                spp: int, batch_size: int, triangles: int, tiles_x: int, cull_back_faces: wp.array(dtype=wp.uint8),
+                binned_count: wp.array(dtype=wp.int32), binned_face: wp.array(dtype=wp.int32),
+                binned_rect: wp.array(dtype=wp.vec4i), tile_counts: wp.array2d(dtype=wp.int32),
+                bad_indices: wp.array(dtype=wp.int32), cluster_lower: wp.array(dtype=wp.vec3),
+                cluster_upper: wp.array(dtype=wp.vec3), cluster_axis: wp.array(dtype=wp.vec3),
+                cluster_spread: wp.array(dtype=float), cluster_rect: wp.array(dtype=wp.vec4i),
+                cluster_nearest: wp.array(dtype=wp.float64), out: wp.array2d(dtype=wp.uint64)) -> wp.vec4i:
+    """count_triangle for the triangles of ``batch`` that pass ``draw`` (DRAW_ALL, ...), cluster
+    by cluster, the binned ones listed as launch ``owner``'s; DRAW_FIRST records the deferred
+    clusters' rectangles and nearest depths. Returns how many clusters were off screen, deferred,
+    occluded and culled as facing away."""
+    end = wp.min((batch + 1) * batch_size, triangles)
+    first_cluster = batch * batch_size / CLUSTER_SIZE
     end_cluster = (end + CLUSTER_SIZE - 1) / CLUSTER_SIZE
     off_screen = int(0)
     facing_away = int(0)
@@ -1108,13 +1109,9 @@ def count_chunk(draw: int, chunk: int, positions: wp.array(dtype=wp.vec3), indic
                 face = base + lowest_set_bit(busy)
                 busy = busy & (busy - wp.uint64(1))
                 count_triangle(positions, indices, vertex_count, screen, depth_weights, proj, samples, spp, face,
-                               chunk, tiles_x, cull_back_faces, chunk * chunk_size, binned_count, binned_face,
+                               owner, tiles_x, cull_back_faces, owner * triangles, binned_count, binned_face,
                                binned_rect, tile_counts, bad_indices, out)
-    if draw != DRAW_ALL:
-        add_atomically(sync, CLUSTERS_OFF_SCREEN, off_screen)
-        add_atomically(sync, CLUSTERS_DEFERRED, deferred)
-        add_atomically(sync, CLUSTERS_OCCLUDED, occluded)
-        add_atomically(sync, CLUSTERS_FACING_AWAY, facing_away)
+    return wp.vec4i(off_screen, deferred, occluded, facing_away)
 
 
 @wp.kernel
@@ -1122,8 +1119,8 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                         positions: wp.array(dtype=wp.vec3),
                         indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
                         depth_weights: wp.array(dtype=wp.float64), cam: CameraData, proj: Projection,
-                        samples: wp.array2d(dtype=wp.vec2), spp: int, min_vertex_share: int, chunk_size: int,
-                        chunk_stride: int, triangles: int, tiles_x: int, tile_stride: int,
+                        samples: wp.array2d(dtype=wp.vec2), spp: int, min_vertex_share: int, batch_size: int,
+                        batch_stride: int, triangles: int, tiles_x: int, tile_stride: int,
                         cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
                         binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
                         tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
@@ -1140,24 +1137,26 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
 
     From START: the buffer's rows cleared and the vertices projected, in pieces taken from a
     queue (launch 0 first decides on the occlusion pass), until all are done (all_done); then
-    chunks of chunk_size triangles taken from a queue shared by every launch, ticket t naming
-    chunk (t mod launches) chunk_stride + t / launches, so that launches running side by side
-    draw chunks far apart in the mesh (and mostly apart on screen) rather than neighbours:
+    batches of batch_size triangles taken from a queue shared by every launch, ticket t naming
+    batch (t mod launches) batch_stride + t / launches, so that launches running side by side
+    draw batches far apart in the mesh (and mostly apart on screen) rather than neighbours:
     small triangles drawn into the buffer at once (atomically, as another launch may draw the same
-    sample), the others that may cover a sample listed with their screen rectangles at
-    binned_face and binned_rect [chunk chunk_size, + binned_count[chunk]) and counted per tile
-    they touch in row ``chunk`` of tile_counts (a chunk is one launch's: no atomics), or the
-    chunk's bad_indices set for a triangle with an index out of range (it is not read). With
-    clusters (cluster_lower... nonempty) the chunks are drawn cluster by cluster (count_chunk),
+    sample), the others that may cover a sample listed by the launch that drew them (their owner)
+    with their screen rectangles at binned_face and binned_rect [owner triangles, +
+    binned_count[owner]) and counted per tile they touch in row ``owner`` of tile_counts (no
+    atomics), or the owner's bad_indices set for a triangle with an index out of range (it is not
+    read). Batches are small (a few clusters) so that launches finish a pass together; the
+    binning, owned per launch rather than per batch, does not grow with their number. With
+    clusters (cluster_lower... nonempty) the batches are drawn cluster by cluster (count_batch),
     but for the clusters off screen or facing away from the eye where every triangle is flagged
     for culling; where occlusion_pass_pays (launch 0 decides it, in ``sync``), in two passes:
     first those facing the eye or not testable, the others deferred (their rectangle and nearest
     depth kept in cluster_rect and cluster_nearest); then, once every launch has drawn its
-    first-pass chunks, the deferred clusters that what the buffer holds by then does not hide
-    (is_occluded), their chunks taken from a second queue. Launch 0
+    first-pass batches, the deferred clusters that what the buffer holds by then does not hide
+    (is_occluded), their batches taken from a second queue. Launch 0
     then lays out the bins (bin_offsets) and records the OUTCOME in ``sync``; all stop unless it
     is BINNED (or if stop_after_binning, to time the parts apart). From FILL: each listed
-    triangle's slot appended to the bin of every tile its rectangle touches, chunk by chunk from
+    triangle's slot appended to the bin of every tile its rectangle touches, owner by owner from
     another queue; then tiles taken from a third queue, the k-th taken tile k tile_stride modulo
     the tile count, each drawn by the launch that took it alone (rasterize_tile). Every queue
     hands out work to whichever launch asks first, so one with cheaper work (culled back faces,
@@ -1203,8 +1202,10 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
             if sync[OCCLUSION_PASS] != 0:
                 passes = 2
                 draw = DRAW_FIRST
+        batches = (triangles + batch_size - 1) / batch_size
+        tally = wp.vec4i(0)
         for k in range(passes):
-            queue = QUEUE_CHUNKS
+            queue = QUEUE_BATCHES
             if k == 1:
                 # the clusters facing away are tested against what those facing the eye drew
                 if not all_arrived(sync, BARRIER_DRAWN_FIRST, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
@@ -1212,20 +1213,26 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                 queue = QUEUE_DEFERRED
                 draw = DRAW_UNOCCLUDED
             ticket = take_next_item_from(sync, queue)
-            while ticket < launches * chunk_stride:
-                chunk = (ticket % launches) * chunk_stride + ticket / launches
-                if chunk < tile_counts.shape[0]:
-                    count_chunk(draw, chunk, positions, indices, vertex_count, screen, depth_weights, proj, samples,
-                                spp, chunk_size, triangles, tiles_x, cull_back_faces, binned_count, binned_face,
-                                binned_rect, tile_counts, bad_indices, cluster_lower, cluster_upper, cluster_axis,
-                                cluster_spread, cluster_rect, cluster_nearest, sync, out)
+            while ticket < launches * batch_stride:
+                batch = (ticket % launches) * batch_stride + ticket / launches
+                if batch < batches:
+                    tally = tally + count_batch(draw, batch, launch, positions, indices, vertex_count, screen,
+                                                depth_weights, proj, samples, spp, batch_size, triangles, tiles_x,
+                                                cull_back_faces, binned_count, binned_face, binned_rect, tile_counts,
+                                                bad_indices, cluster_lower, cluster_upper, cluster_axis,
+                                                cluster_spread, cluster_rect, cluster_nearest, out)
                 ticket = take_next_item_from(sync, queue)
+        if draw != DRAW_ALL:
+            add_atomically(sync, CLUSTERS_OFF_SCREEN, tally[0])
+            add_atomically(sync, CLUSTERS_DEFERRED, tally[1])
+            add_atomically(sync, CLUSTERS_OCCLUDED, tally[2])
+            add_atomically(sync, CLUSTERS_FACING_AWAY, tally[3])
         if not all_arrived(sync, BARRIER_COUNTED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
             return
         if launch == 0:
             outcome = BINNED
-            for chunk in range(bad_indices.shape[0]):
-                if bad_indices[chunk] != 0:
+            for owner in range(bad_indices.shape[0]):
+                if bad_indices[owner] != 0:
                     outcome = BAD_INDEX
             if outcome == BINNED:
                 bin_offsets(tile_counts, cursors, bin_start, bin_total)
@@ -1236,12 +1243,12 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
             return
         if sync[OUTCOME] != BINNED or stop_after_binning != 0:
             return
-    chunk = take_next_item_from(sync, QUEUE_FILL)
-    while chunk < binned_count.shape[0]:
-        first = chunk * chunk_size
-        for slot in range(first, first + binned_count[chunk]):
-            bin_triangle(binned_rect, slot, chunk, tiles_x, cursors, bins)
-        chunk = take_next_item_from(sync, QUEUE_FILL)
+    owner = take_next_item_from(sync, QUEUE_FILL)
+    while owner < binned_count.shape[0]:
+        first = owner * triangles
+        for slot in range(first, first + binned_count[owner]):
+            bin_triangle(binned_rect, slot, owner, tiles_x, cursors, bins)
+        owner = take_next_item_from(sync, QUEUE_FILL)
     if not all_arrived(sync, BARRIER_FILLED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
         return
     tiles = bin_start.shape[0] - 1

@@ -6,8 +6,8 @@ kernels/raster.py's visibility_pipeline per thread, the calling thread and pool 
 side (Warp CPU launches run on one thread and release the GIL), meeting at barriers that spin in
 the kernel rather than return to Python: the buffer cleared and vertices projected (a share
 each); triangles' screen rectangles, small triangles drawn into the buffer at once (atomic
-minima, as two threads may write one sample) and larger ones binned into TILE_SIZE tiles, a few
-chunks of triangles per thread taken from a shared queue; the bins laid out and filled; then
+minima, as two threads may write one sample) and larger ones binned into TILE_SIZE tiles, in
+small batches of triangles taken from a shared queue; the bins laid out and filled; then
 tiles taken from another queue, a tile drawn by one launch only. A sample keeps the minimum of
 its entries whatever the order they come in, so the buffer does not depend on the thread count.
 With a mesh's :func:`triangle_clusters`, clusters off screen, facing away (where flagged) or
@@ -36,16 +36,18 @@ from pbrwarp.kernels.loading import load_for_cpu
 NO_TRIANGLE = 0xFFFFFFFFFFFFFFFF
 TILE_SIZE = int(rk.TILE_SIZE)
 MAX_IMAGE_SIZE = rk.MAX_IMAGE_SIZE
-# Fewest vertices or triangles worth a thread's share of projection or a chunk of binning: below
-# this, sharing costs more than the work (with the stages meeting at barriers, 4096 bins a
-# 15k-triangle mesh ~10% faster on 2 threads than 16384 did).
-MIN_CHUNK = 4096
-# Chunks of triangles per thread in binning, taken from a shared queue: a thread whose chunks
-# cost less (back faces culled, triangles off screen) takes more rather than waiting, and the
-# last chunk taken, which the other threads wait for at a barrier, is short (16 rather than 4:
-# 2 threads, 1024², development A/B in turns: happy Buddha 45 -> 41 ms, terrain 41 -> 39 ms,
-# the 1.3M-triangle icosphere with clusters culled 31 -> 28 ms, the bunny 10.8 -> 10.4 ms).
-CHUNKS_PER_THREAD = 16
+# Fewest vertices worth a piece of projection: below this, sharing costs more than the work.
+MIN_VERTEX_SHARE = 4096
+# Batches of triangles per thread, taken from a shared queue in each pass: a thread whose
+# batches cost less (back faces culled, triangles off screen, clusters deferred) takes more
+# rather than waiting, and the last batch taken, which the other threads wait for at the
+# pass's barrier, is short; at most MAX_BATCH triangles, at least a cluster. (Batches are not
+# the binning's unit, which is the launch, so their number costs only a queue ticket each.
+# Chunks of binning, 16 a thread, had been the unit: cycle-counter stamps, 2 threads, 1024²,
+# development, showed a launch waiting ~1 ms for the other's last chunk at the end of the
+# first pass, for the happy Buddha and the 327k-triangle icosphere.)
+BATCHES_PER_THREAD = 64
+MAX_BATCH = 2048
 # Sample-position arrays kept for reuse (they depend on the image size, spp and seed only).
 CACHED_SAMPLE_LAYOUTS = 4
 
@@ -120,7 +122,7 @@ RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 7.34e-9
 
 KERNELS = (rk.sample_positions, rk.visibility_pipeline, ok.cluster_bounds)
 CLUSTER_SIZE = int(ok.CLUSTER_SIZE)
-# count_chunk draws a cluster from one 64-bit mask of its triangles (kernels/raster.py triangles_to_count)
+# count_batch draws a cluster from one 64-bit mask of its triangles (kernels/raster.py triangles_to_count)
 assert CLUSTER_SIZE <= 64, "a cluster's triangles must fit in one uint64 mask"
 
 
@@ -303,12 +305,12 @@ def _check_geometry(positions, indices) -> tuple[int, int]:
 @dataclass(frozen=True)
 class _Layout:
     """What a visibility_buffer call of one shape (mesh and image sizes, spp, threads, clusters)
-    works with: its chunking and tiling, and its scratch arrays (views of _scratch_array's)."""
+    works with: its batches and tiles, and its scratch arrays (views of _scratch_array's)."""
 
     tiles_x: int
     tiles: int
-    chunk_size: int
-    chunk_stride: int
+    batch_size: int
+    batch_stride: int
     tile_stride: int
     screen: wp.array
     depth_weights: wp.array
@@ -338,28 +340,30 @@ def _call_layout(scratch: dict, vertices: int, triangles: int, width: int, heigh
         return last[1]
     tiles_x = math.ceil(width / TILE_SIZE)
     tiles = tiles_x * math.ceil(height / TILE_SIZE)
-    # chunks of triangles taken from a queue, several per thread so that none waits for another
-    chunk_size = max(MIN_CHUNK, math.ceil(triangles / (threads * CHUNKS_PER_THREAD)))
-    chunk_size = math.ceil(chunk_size / CLUSTER_SIZE) * CLUSTER_SIZE  # whole clusters
-    chunk_count = max(math.ceil(triangles / chunk_size), 1)
+    batch_size = min(MAX_BATCH, math.ceil(triangles / (threads * BATCHES_PER_THREAD)))
+    batch_size = max(1, math.ceil(batch_size / CLUSTER_SIZE)) * CLUSTER_SIZE  # whole clusters
+    batches = max(math.ceil(triangles / batch_size), 1)
     sync_slots = int(rk.SYNC_SLOTS)
-    zeroed = _scratch_array(scratch, "zeroed", 2 * chunk_count + sync_slots + chunk_count * tiles, wp.int32)
-    counts_end = 2 * chunk_count + sync_slots
+    # per launch: its count of binned triangles, its flag for an index out of range, its row of
+    # per-tile counts; then the shared slots
+    zeroed = _scratch_array(scratch, "zeroed", 2 * threads + sync_slots + threads * tiles, wp.int32)
+    counts_end = 2 * threads + sync_slots
     layout = _Layout(
-        tiles_x=tiles_x, tiles=tiles, chunk_size=chunk_size, chunk_stride=math.ceil(chunk_count / threads),
+        tiles_x=tiles_x, tiles=tiles, batch_size=batch_size, batch_stride=math.ceil(batches / threads),
         tile_stride=_tile_stride(tiles),
         screen=_scratch_array(scratch, "screen", vertices, wp.vec2i),
         depth_weights=_scratch_array(scratch, "depth_weights", vertices, wp.float64),
-        binned_face=_scratch_array(scratch, "binned_face", triangles, wp.int32),
-        binned_rect=_scratch_array(scratch, "binned_rect", triangles, wp.vec4i),
-        cursors=_scratch_array(scratch, "cursors", (chunk_count, tiles), wp.int32),
+        # each launch's list of binned triangles has room for all of them
+        binned_face=_scratch_array(scratch, "binned_face", threads * triangles, wp.int32),
+        binned_rect=_scratch_array(scratch, "binned_rect", threads * triangles, wp.vec4i),
+        cursors=_scratch_array(scratch, "cursors", (threads, tiles), wp.int32),
         bin_start=_scratch_array(scratch, "bin_start", tiles + 1, wp.int32),
         # written by the pipeline before it is read
         bin_total=_scratch_array(scratch, "bin_total", 1, wp.int64),
         cluster_rect=_scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i),
         cluster_nearest=_scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64),
-        zeroed=zeroed, binned_count=zeroed[:chunk_count], bad_indices=zeroed[chunk_count:2 * chunk_count],
-        sync=zeroed[2 * chunk_count:counts_end], tile_counts=zeroed[counts_end:].reshape((chunk_count, tiles)))
+        zeroed=zeroed, binned_count=zeroed[:threads], bad_indices=zeroed[threads:2 * threads],
+        sync=zeroed[2 * threads:counts_end], tile_counts=zeroed[counts_end:].reshape((threads, tiles)))
     scratch["layout"] = (key, layout)
     return layout
 
@@ -417,6 +421,9 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     width, height = int(cam.width), int(cam.height)
     _check_sampling(width, height, spp, grid_m, grid_n, seed)
     vertices, triangles = _check_geometry(positions, indices)
+    if threads * triangles >= 2**31:
+        raise InputError(f"{triangles} triangles on {threads} threads: each thread's list of triangles to bin has "
+                         "room for all of them, in int32 entries; use fewer threads")
     if out is not None and (not isinstance(out, wp.array) or out.dtype != wp.uint64 or out.device.is_cuda
                             or out.shape != (height, width * spp) or not out.is_contiguous):
         raise InputError(f"out must be a contiguous CPU wp.array of uint64 of shape {(height, width * spp)}")
@@ -456,7 +463,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                 _replay_launch(scratch, ("pipeline", k), rk.visibility_pipeline,
                                [k, threads, first_stage, int(stop_after_binning), _os_yield_address(), positions,
                                 indices, vertices, layout.screen, layout.depth_weights, cam, proj, samples, spp,
-                                MIN_CHUNK, layout.chunk_size, layout.chunk_stride, triangles, layout.tiles_x,
+                                MIN_VERTEX_SHARE, layout.batch_size, layout.batch_stride, triangles, layout.tiles_x,
                                 layout.tile_stride, cull_back_faces, layout.binned_count, layout.binned_face,
                                 layout.binned_rect, layout.tile_counts, layout.bad_indices, layout.cursors,
                                 layout.bin_start, layout.bin_total, bins, *cluster_arrays, layout.cluster_rect,

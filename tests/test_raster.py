@@ -745,6 +745,9 @@ def test_bad_input_is_rejected_before_warp():
         visibility_buffer(geom.positions, geom.indices, cam, out=wp.empty((64, 63), dtype=wp.uint64))
     with pytest.raises(pw.InputError):
         visibility_buffer(geom.positions, geom.indices, cam, cull_back_faces=wp.zeros(2, dtype=wp.uint8))
+    # each thread's list of triangles to bin has room for all of them, in int32 entries
+    with pytest.raises(pw.InputError, match="use fewer threads"):
+        visibility_buffer(geom.positions, geom.indices, cam, threads=2**31)
 
 
 @wp.kernel(enable_backward=False)
