@@ -4,6 +4,8 @@ share."""
 
 import warp as wp
 
+from .camera import CameraData
+
 wp.set_module_options({"enable_backward": False})
 
 # Vertices and samples are snapped to 1/4096 pixel: far below what the float32 ray caster
@@ -31,6 +33,56 @@ class Projection:
     # the sign of signed_area for triangles facing away from the eye (their vertices in
     # counter-clockwise order seen from behind): +1, or -1 for a mirrored camera
     back_facing_sign: wp.int64
+
+
+@wp.func
+def as_vec3d(v: wp.vec3) -> wp.vec3d:
+    return wp.vec3d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2]))
+
+
+@wp.func
+def camera_projection(cam: CameraData, orthographic: int) -> Projection:
+    """The Projection of ``cam`` in float64, the exact inverse of camera_ray_direction: to_camera
+    inverts the matrix of columns right, up, forward (its rows b x c, c x a, a x b over the
+    determinant, for columns a, b, c); or, ``orthographic`` nonzero, the parallel projection
+    along forward whose view spans right and up (half-extents in world units) about the eye.
+    Meaningful where has_usable_axes(cam)."""
+    a = as_vec3d(cam.right)
+    b = as_vec3d(cam.up)
+    c = as_vec3d(cam.forward)
+    row0 = wp.cross(b, c)
+    row1 = wp.cross(c, a)
+    row2 = wp.cross(a, b)
+    det = wp.dot(a, row0)
+    proj = Projection()
+    proj.eye = as_vec3d(cam.eye)
+    proj.to_camera = wp.mat33d(row0[0] / det, row0[1] / det, row0[2] / det, row1[0] / det, row1[1] / det,
+                               row1[2] / det, row2[0] / det, row2[1] / det, row2[2] / det)
+    proj.half_width = wp.float64(0.5) * wp.float64(cam.width)
+    proj.half_height = wp.float64(0.5) * wp.float64(cam.height)
+    proj.width = cam.width
+    proj.height = cam.height
+    proj.orthographic = wp.where(orthographic != 0, 1, 0)
+    # a triangle whose vertices run counter-clockwise seen from the eye projects with area of
+    # the sign of det(axes) (screen y points down)
+    proj.back_facing_sign = wp.where(det > wp.float64(0.0), wp.int64(-1), wp.int64(1))
+    return proj
+
+
+@wp.func
+def has_usable_axes(cam: CameraData) -> bool:
+    """Whether cam's eye and axes are finite and its axes linearly independent (a determinant of
+    magnitude at least 1e-300), as camera_projection needs."""
+    det = wp.dot(as_vec3d(cam.right), wp.cross(as_vec3d(cam.up), as_vec3d(cam.forward)))
+    finite = wp.isfinite(cam.eye) and wp.isfinite(cam.right) and wp.isfinite(cam.up) and wp.isfinite(cam.forward)
+    return finite and wp.abs(det) >= wp.float64(1.0e-300)
+
+
+@wp.kernel
+def projection_of(cam: CameraData, orthographic: int, out: wp.array(dtype=Projection),
+                  usable: wp.array(dtype=wp.int32)):
+    out[0] = camera_projection(cam, orthographic)
+    usable[0] = wp.where(has_usable_axes(cam), 1, 0)
 
 
 @wp.func

@@ -34,8 +34,10 @@ from .projection import (
     SUBPIXEL_SCALE,
     Projection,
     camera_coordinates,
+    camera_projection,
     clamped_rect,
     empty_rect,
+    has_usable_axes,
     pixels_around,
     sampled_pixel_range,
     screen_point,
@@ -941,6 +943,8 @@ START_PIECES_PER_LAUNCH = wp.constant(8)
 BINNED = wp.constant(0)
 BAD_INDEX = wp.constant(1)
 BINS_TOO_SMALL = wp.constant(2)
+# The camera's axes are not finite or not independent (nothing drawn).
+BAD_CAMERA = wp.constant(3)
 # Spins (pause instructions) of a waiting launch between yields of its core (see all_arrived).
 SPINS_BEFORE_YIELD = wp.constant(1024)
 # Stages a launch may start at.
@@ -1118,7 +1122,7 @@ def count_batch(draw: int, batch: int, owner: int, positions: wp.array(dtype=wp.
 def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after_binning: int, os_yield: wp.uint64,
                         positions: wp.array(dtype=wp.vec3),
                         indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
-                        depth_weights: wp.array(dtype=wp.float64), cam: CameraData, proj: Projection,
+                        depth_weights: wp.array(dtype=wp.float64), cam: CameraData, orthographic: int,
                         samples: wp.array2d(dtype=wp.vec2), spp: int, min_vertex_share: int, batch_size: int,
                         batch_stride: int, triangles: int, tiles_x: int, tile_stride: int,
                         cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
@@ -1160,9 +1164,17 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     another queue; then tiles taken from a third queue, the k-th taken tile k tile_stride modulo
     the tile count, each drawn by the launch that took it alone (rasterize_tile). Every queue
     hands out work to whichever launch asks first, so one with cheaper work (culled back faces,
-    triangles off screen) takes more. ``sync`` must be zeroed before a call (and its FILL
-    barrier, queues and outcome before resuming there); ``os_yield`` is all_arrived's.
+    triangles off screen) takes more. The projection is cam's (camera_projection, parallel if
+    ``orthographic``); a camera without usable axes draws nothing, its OUTCOME BAD_CAMERA.
+    ``sync`` must be zeroed before a call (and its FILL barrier, queues and outcome before
+    resuming there); ``os_yield`` is all_arrived's.
     """
+    # each launch derives the same projection (computing it costs less than packing it in Python)
+    proj = camera_projection(cam, orthographic)
+    if not has_usable_axes(cam):
+        if launch == 0:
+            sync[OUTCOME] = BAD_CAMERA
+        return
     if first_stage == START:
         samples_count = wp.int64(out.shape[0]) * wp.int64(out.shape[1])
         done = int(0)

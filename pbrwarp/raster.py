@@ -32,6 +32,7 @@ from pbrwarp.kernels import occlusion as ok
 from pbrwarp.kernels import raster as rk
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
+from pbrwarp.kernels.projection import projection_of
 
 NO_TRIANGLE = 0xFFFFFFFFFFFFFFFF
 TILE_SIZE = int(rk.TILE_SIZE)
@@ -120,7 +121,7 @@ RASTER_SECONDS_PER_TRIANGLE = 11.7e-9
 RASTER_SECONDS_PER_SAMPLE = 7.39e-9
 RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 7.89e-9
 
-KERNELS = (rk.sample_positions, rk.visibility_pipeline, ok.cluster_bounds)
+KERNELS = (rk.sample_positions, rk.visibility_pipeline, ok.cluster_bounds, projection_of)
 CLUSTER_SIZE = int(ok.CLUSTER_SIZE)
 # count_batch draws a cluster from one 64-bit mask of its triangles (kernels/raster.py triangles_to_count)
 assert CLUSTER_SIZE <= 64, "a cluster's triangles must fit in one uint64 mask"
@@ -245,30 +246,19 @@ def sample_positions(width: int, height: int, spp: int = 1, grid_m: int = 1, gri
 def projection(cam: CameraData, orthographic: bool = False) -> rk.Projection:
     """World-to-screen mapping of ``cam`` in float64, the exact inverse of camera_ray_direction;
     or, ``orthographic``, the parallel projection along cam.forward whose view spans
-    cam.right and cam.up (half-extents in world units) about cam.eye. In plain Python floats:
-    NumPy's 3x3 inverse and determinant (LAPACK) took ~0.1-0.35 ms of every visibility_buffer
-    call (development measurement, the longer after a large frame had left the caches cold)."""
-    a, b, c = (tuple(float(x) for x in axis) for axis in (cam.right, cam.up, cam.forward))
-    # the inverse of the matrix of columns a, b, c has rows b x c, c x a, a x b over det
-    rows = (_cross(b, c), _cross(c, a), _cross(a, b))
-    det = a[0] * rows[0][0] + a[1] * rows[0][1] + a[2] * rows[0][2]
-    if not (all(math.isfinite(x) for x in a + b + c) and abs(det) >= 1e-300):
-        raise InputError("camera axes must be finite and linearly independent")
-    proj = rk.Projection()
-    proj.eye = wp.vec3d(*(float(x) for x in cam.eye))
-    proj.to_camera = wp.mat33d(*(x / det for row in rows for x in row))
-    proj.half_width = 0.5 * cam.width
-    proj.half_height = 0.5 * cam.height
-    proj.width, proj.height = cam.width, cam.height
-    proj.orthographic = int(bool(orthographic))
-    # a triangle whose vertices run counter-clockwise seen from the eye projects with area of
-    # the sign of det(axes) (screen y points down)
-    proj.back_facing_sign = -1 if det > 0 else 1
-    return proj
+    cam.right and cam.up (half-extents in world units) about cam.eye: kernels/projection.py
+    camera_projection, the very one visibility_buffer's launches derive."""
+    _load_kernels()
+    out = wp.empty(1, dtype=rk.Projection, device="cpu")
+    usable = wp.empty(1, dtype=wp.int32, device="cpu")
+    wp.launch(projection_of, dim=1, device="cpu", inputs=[cam, int(bool(orthographic)), out, usable])
+    if not usable.numpy()[0]:
+        raise _unusable_camera()
+    return out.list()[0]
 
 
-def _cross(u: tuple, v: tuple) -> tuple:
-    return (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
+def _unusable_camera() -> InputError:
+    return InputError("camera axes must be finite and linearly independent")
 
 
 def _check_sampling(width, height, spp, grid_m, grid_n, seed):
@@ -435,7 +425,6 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     if clusters is not None and (not isinstance(clusters, Clusters) or clusters.positions is not positions
                                  or clusters.indices is not indices):
         raise InputError("clusters must be triangle_clusters(positions, indices) of these very arrays")
-    proj = projection(cam, orthographic)
     _load_kernels()
     clock = time.perf_counter()
     samples = _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads)
@@ -462,7 +451,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
             try:
                 _replay_launch(scratch, ("pipeline", k), rk.visibility_pipeline,
                                [k, threads, first_stage, int(stop_after_binning), _os_yield_address(), positions,
-                                indices, vertices, layout.screen, layout.depth_weights, cam, proj, samples, spp,
+                                indices, vertices, layout.screen, layout.depth_weights, cam, int(bool(orthographic)), samples, spp,
                                 MIN_VERTEX_SHARE, layout.batch_size, layout.batch_stride, triangles, layout.tiles_x,
                                 layout.tile_stride, cull_back_faces, layout.binned_count, layout.binned_face,
                                 layout.binned_rect, layout.tile_counts, layout.bad_indices, layout.cursors,
@@ -477,6 +466,8 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     split = timings is not None
     run(int(rk.START), split)
     outcome = int(sync.numpy()[int(rk.OUTCOME)])
+    if outcome == int(rk.BAD_CAMERA):
+        raise _unusable_camera()
     if outcome == int(rk.BAD_INDEX):
         raise _index_out_of_range(indices.numpy(), vertices)
     t_binned = time.perf_counter()

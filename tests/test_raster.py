@@ -848,7 +848,8 @@ def test_vertex_projection_against_float64(orthographic):
 def test_projection_inverts_the_camera_axes_and_rejects_degenerate_ones():
     """to_camera is the float64 inverse of the matrix of the camera's scaled axes (columns right,
     up, forward) for a tilted, non-square and a mirrored camera; the back-facing sign follows the
-    handedness; axes that are not finite or not independent are refused with a clear error."""
+    handedness; axes that are not finite or not independent are refused with a clear error, by
+    projection and by visibility_buffer."""
     for camera, size, mirrored in ((pw.Camera.look_at((0.3, -0.2, 4.0), (0.0, 0.0, 0.0), up=(0.2, 1.0, 0.1),
                                                       fov_y=60.0), (640, 480), False),
                                    (pw.Camera.look_at((5.0, 1.0, -2.0), (0.0, 0.5, 0.0), fov_y=20.0), (31, 977), False)):
@@ -870,6 +871,11 @@ def test_projection_inverts_the_camera_axes_and_rejects_degenerate_ones():
         cam.up = wp.vec3(*bad)  # along right, or not finite
         with pytest.raises(pw.InputError, match="camera axes must be finite and linearly independent"):
             projection(cam)
+        # visibility_buffer's launches derive the projection themselves and refuse such a camera too
+        geom = mesh_geometry([(0, 0, -1), (1, 0, -1), (0, 1, -1)], [[0, 1, 2]])
+        for threads in (1, 2):
+            with pytest.raises(pw.InputError, match="camera axes must be finite and linearly independent"):
+                visibility_buffer(geom.positions, geom.indices, cam, threads=threads)
 
 
 @wp.kernel
