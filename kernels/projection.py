@@ -71,10 +71,11 @@ def camera_projection(cam: CameraData, orthographic: int) -> Projection:
 
 @wp.func
 def has_usable_axes(cam: CameraData) -> bool:
-    """Whether cam's eye and axes are finite and its axes linearly independent (a determinant of
-    magnitude at least 1e-300), as camera_projection needs."""
+    """Whether cam's axes are finite and linearly independent (a determinant of magnitude at
+    least 1e-300), as camera_projection needs. (An eye out of float range, as a camera framing
+    a scene near float32's limit has, projects every vertex as not drawable: nothing is drawn.)"""
     det = wp.dot(as_vec3d(cam.right), wp.cross(as_vec3d(cam.up), as_vec3d(cam.forward)))
-    finite = wp.isfinite(cam.eye) and wp.isfinite(cam.right) and wp.isfinite(cam.up) and wp.isfinite(cam.forward)
+    finite = wp.isfinite(cam.right) and wp.isfinite(cam.up) and wp.isfinite(cam.forward)
     return finite and wp.abs(det) >= wp.float64(1.0e-300)
 
 

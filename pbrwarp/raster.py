@@ -451,8 +451,9 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
             try:
                 _replay_launch(scratch, ("pipeline", k), rk.visibility_pipeline,
                                [k, threads, first_stage, int(stop_after_binning), _os_yield_address(), positions,
-                                indices, vertices, layout.screen, layout.depth_weights, cam, int(bool(orthographic)), samples, spp,
-                                MIN_VERTEX_SHARE, layout.batch_size, layout.batch_stride, triangles, layout.tiles_x,
+                                indices, vertices, layout.screen, layout.depth_weights, cam, int(bool(orthographic)),
+                                samples, spp, MIN_VERTEX_SHARE, layout.batch_size, layout.batch_stride, triangles,
+                                layout.tiles_x,
                                 layout.tile_stride, cull_back_faces, layout.binned_count, layout.binned_face,
                                 layout.binned_rect, layout.tile_counts, layout.bad_indices, layout.cursors,
                                 layout.bin_start, layout.bin_total, bins, *cluster_arrays, layout.cluster_rect,
@@ -461,7 +462,10 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                 sync.numpy()[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one
                 raise
 
-        run_together(launch, threads)
+        join = run_together(launch, threads, join=False)
+        if sync.numpy()[int(rk.ABORTED)] != 0:
+            join()  # a pool thread's launch failed: its error, raised here
+            raise RuntimeError("the raster's launches were aborted")
 
     split = timings is not None
     run(int(rk.START), split)
@@ -477,6 +481,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
             raise InputError(f"too many triangle-tile pairs ({total}) for int32 bins")
         bins = scratch["bins"] = wp.empty(total, dtype=wp.int32, device="cpu")
     if split or outcome == int(rk.BINS_TOO_SMALL):
+        sync.numpy()[int(rk.FINISHED)] = 0
         run(int(rk.FILL), False)
     if counts is not None:
         tally = sync.numpy()

@@ -849,7 +849,7 @@ def test_projection_inverts_the_camera_axes_and_rejects_degenerate_ones():
     """to_camera is the float64 inverse of the matrix of the camera's scaled axes (columns right,
     up, forward) for a tilted, non-square and a mirrored camera; the back-facing sign follows the
     handedness; axes that are not finite or not independent are refused with a clear error, by
-    projection and by visibility_buffer."""
+    projection and by visibility_buffer; an eye out of float range draws nothing."""
     for camera, size, mirrored in ((pw.Camera.look_at((0.3, -0.2, 4.0), (0.0, 0.0, 0.0), up=(0.2, 1.0, 0.1),
                                                       fov_y=60.0), (640, 480), False),
                                    (pw.Camera.look_at((5.0, 1.0, -2.0), (0.0, 0.5, 0.0), fov_y=20.0), (31, 977), False)):
@@ -876,6 +876,13 @@ def test_projection_inverts_the_camera_axes_and_rejects_degenerate_ones():
         for threads in (1, 2):
             with pytest.raises(pw.InputError, match="camera axes must be finite and linearly independent"):
                 visibility_buffer(geom.positions, geom.indices, cam, threads=threads)
+    # an eye out of float range (a camera framing a scene near float32's limit) draws nothing
+    geom = Geometry(scene_of(icosphere(3)))
+    for eye in ((float("inf"), 0.0, 0.0), (0.0, float("nan"), 0.0)):
+        cam = camera_data(pw.Camera.look_at((0.0, 0.0, 3.0), (0.0, 0.0, 0.0)), 64, 48)
+        cam.eye = wp.vec3(*eye)
+        for threads in (1, 2):
+            assert (decode(visibility_buffer(geom.positions, geom.indices, cam, threads=threads))[0] < 0).all()
 
 
 @wp.kernel
@@ -909,3 +916,45 @@ def test_covered_steps_solve_the_edge_inequality_exactly():
             assert tuple(solved[i]) == (ks[0], ks[-1]), (e[i], step[i], first[i], last[i])
         else:
             assert solved[i][0] > solved[i][1], (e[i], step[i], first[i], last[i])
+
+
+def test_run_together_without_joining_returns_with_the_caller_and_reports_the_helpers():
+    """pbrwarp.parallel.run_together(join=False) returns once fn(0) has, the pool threads' work
+    still running; its callable waits for them and raises the first of their errors; an error of
+    fn(0) is raised only once the others are done."""
+    import threading
+    from pbrwarp.parallel import run_together
+
+    release, finished = threading.Event(), []
+
+    def helper_waits(k):
+        if k:
+            release.wait(10)
+            finished.append(k)
+
+    join = run_together(helper_waits, 3, join=False)
+    assert finished == []  # the helpers still wait
+    release.set()
+    join()
+    assert sorted(finished) == [1, 2]
+
+    def helper_fails(k):
+        if k == 2:
+            raise ValueError("helper 2 failed")
+
+    join = run_together(helper_fails, 3, join=False)
+    with pytest.raises(ValueError, match="helper 2 failed"):
+        join()
+
+    done, later = [], threading.Event()
+    threading.Timer(0.2, later.set).start()
+
+    def caller_fails(k):
+        if k == 0:
+            raise KeyError("caller failed")
+        later.wait(10)
+        done.append(k)
+
+    with pytest.raises(KeyError, match="caller failed"):
+        run_together(caller_fails, 2, join=False)
+    assert done == [1]
