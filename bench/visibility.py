@@ -142,6 +142,16 @@ def bench_case(label, mesh, size, repeats, threads_all):
             splits.append(split)
     for key, seconds in times.items():
         row[key] = 1e3 * statistics.median(seconds)
+
+    def paired_speedup(one_thread, all_threads):
+        # the median of each round's ratio: both calls come within ~0.1 s of each other, so a
+        # drift of this shared machine's speed between rounds cancels out
+        return statistics.median(a / b for a, b in zip(times[one_thread], times[all_threads]))
+
+    row["raster_speedup"] = paired_speedup("raster_ms_1t", f"raster_ms_{threads_all}t")
+    row["raster_speedup_after_one_thread"] = paired_speedup("raster_ms_1t",
+                                                            f"raster_after_one_thread_ms_{threads_all}t")
+    row["divisible_speedup"] = paired_speedup("divisible_ms_1t", f"divisible_ms_{threads_all}t")
     row["binning_ms"] = 1e3 * statistics.median(t["binning"] for t in splits)
     row["rasterization_ms"] = 1e3 * statistics.median(t["raster"] for t in splits)
 
@@ -177,9 +187,6 @@ def bench_case(label, mesh, size, repeats, threads_all):
     if "embree_ms" in row:
         row["raster_to_embree"] = row["embree_ms"] / row[f"raster_ms_{threads_all}t"]
         row["culled_raster_to_embree"] = row["embree_ms"] / row[f"raster_culled_ms_{threads_all}t"]
-    row["raster_speedup"] = row["raster_ms_1t"] / row[f"raster_ms_{threads_all}t"]
-    row["raster_speedup_after_one_thread"] = row["raster_ms_1t"] / row[f"raster_after_one_thread_ms_{threads_all}t"]
-    row["divisible_speedup"] = row["divisible_ms_1t"] / row[f"divisible_ms_{threads_all}t"]
     return row
 
 
@@ -240,7 +247,8 @@ def markdown(rows, model, threads_all):
         "delaying its share), then, with the pool awake as a frame's other stages keep it, the other raster "
         "variants and the divisible kernel in turn, round after round. Divisible kernel: a compute-only Warp "
         "kernel as long on one thread as the row's raster, split in equal parts over the threads through the "
-        "same pool: the speedup a perfectly divisible kernel of that length gets on this machine. Clusters occluded: the fraction culled as hidden; in brackets, with back faces culled, "
+        "same pool: the speedup a perfectly divisible kernel of that length gets on this machine. Speedups are "
+        "medians of each round's ratio (its one-thread time over its all-thread time). Clusters occluded: the fraction culled as hidden; in brackets, with back faces culled, "
         "those culled as facing away and as hidden. Back faces culled: every "
         "triangle flagged in cull_back_faces, as pw.render flags single-sided meshes and closed ones seen from "
         "outside (the icospheres are closed; the others stand for single-sided meshes). Ray cast: "
