@@ -1120,24 +1120,59 @@ def count_batch(draw: int, batch: int, owner: int, positions: wp.array(dtype=wp.
     return wp.vec4i(off_screen, deferred, occluded, facing_away)
 
 
-@wp.func
-def draw_visibility(launch: int, launches: int, first_stage: int, stop_after_binning: int, os_yield: wp.uint64,
-                    positions: wp.array(dtype=wp.vec3),
-                    indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
-                    depth_weights: wp.array(dtype=wp.float64), cam: CameraData, orthographic: int,
-                    samples: wp.array2d(dtype=wp.vec2), spp: int, min_vertex_share: int, batch_size: int,
-                    batch_stride: int, triangles: int, tiles_x: int, tile_stride: int,
-                    cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
-                    binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
-                    tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
-                    cursors: wp.array2d(dtype=wp.int32), bin_start: wp.array(dtype=wp.int32),
-                    bin_total: wp.array(dtype=wp.int64), bins: wp.array(dtype=wp.int32),
-                    cluster_lower: wp.array(dtype=wp.vec3), cluster_upper: wp.array(dtype=wp.vec3),
-                    cluster_axis: wp.array(dtype=wp.vec3), cluster_spread: wp.array(dtype=float),
-                    cluster_rect: wp.array(dtype=wp.vec4i), cluster_nearest: wp.array(dtype=wp.float64),
-                    sync: wp.array(dtype=wp.int32),
-                    out: wp.array2d(dtype=wp.uint64)):
-    """visibility_pipeline's work, which may stop at any stage (see there)."""
+@wp.kernel
+def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after_binning: int, os_yield: wp.uint64,
+                        positions: wp.array(dtype=wp.vec3),
+                        indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
+                        depth_weights: wp.array(dtype=wp.float64), cam: CameraData, orthographic: int,
+                        samples: wp.array2d(dtype=wp.vec2), spp: int, min_vertex_share: int, batch_size: int,
+                        batch_stride: int, triangles: int, tiles_x: int, tile_stride: int,
+                        cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
+                        binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
+                        tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
+                        cursors: wp.array2d(dtype=wp.int32), bin_start: wp.array(dtype=wp.int32),
+                        bin_total: wp.array(dtype=wp.int64), bins: wp.array(dtype=wp.int32),
+                        cluster_lower: wp.array(dtype=wp.vec3), cluster_upper: wp.array(dtype=wp.vec3),
+                        cluster_axis: wp.array(dtype=wp.vec3), cluster_spread: wp.array(dtype=float),
+                        cluster_rect: wp.array(dtype=wp.vec4i), cluster_nearest: wp.array(dtype=wp.float64),
+                        sync: wp.array(dtype=wp.int32),
+                        out: wp.array2d(dtype=wp.uint64)):
+    """The whole visibility buffer: launched with one index on each of ``launches`` threads
+    (``launch`` = 0, 1, ...) side by side, which meet at spinning barriers (all_arrived) between
+    stages.
+
+    From START: the buffer's rows cleared and the vertices projected, in pieces taken from a
+    queue (launch 0 first decides on the occlusion pass), until all are done (all_done); then
+    batches of batch_size triangles taken from a queue shared by every launch, ticket t naming
+    batch (t mod launches) batch_stride + t / launches, so that launches running side by side
+    draw batches far apart in the mesh (and mostly apart on screen) rather than neighbours:
+    small triangles drawn into the buffer at once (atomically, as another launch may draw the same
+    sample), the others that may cover a sample listed by the launch that drew them (their owner)
+    with their screen rectangles at binned_face and binned_rect [owner triangles, +
+    binned_count[owner]) and counted per tile they touch in row ``owner`` of tile_counts (no
+    atomics), or the owner's bad_indices set for a triangle with an index out of range (it is not
+    read). Batches are small (a few clusters) so that launches finish a pass together; the
+    binning, owned per launch rather than per batch, does not grow with their number. With
+    clusters (cluster_lower... nonempty) the batches are drawn cluster by cluster (count_batch),
+    but for the clusters off screen or facing away from the eye where every triangle is flagged
+    for culling; where occlusion_pass_pays (launch 0 decides it, in ``sync``), in two passes:
+    first those facing the eye or not testable, the others deferred (their rectangle and nearest
+    depth kept in cluster_rect and cluster_nearest); then, once every launch has drawn its
+    first-pass batches, the deferred clusters that what the buffer holds by then does not hide
+    (is_occluded), their batches taken from a second queue. Launch 0
+    then lays out the bins (bin_offsets) and records the OUTCOME in ``sync``; all stop unless it
+    is BINNED (or if stop_after_binning, to time the parts apart). From FILL: each listed
+    triangle's slot appended to the bin of every tile its rectangle touches, owner by owner from
+    another queue; then tiles taken from a third queue, the k-th taken tile k tile_stride modulo
+    the tile count, each drawn by the launch that took it alone (rasterize_tile). Every queue
+    hands out work to whichever launch asks first, so one with cheaper work (culled back faces,
+    triangles off screen) takes more. The projection is cam's (camera_projection, parallel if
+    ``orthographic``); a camera without usable axes draws nothing, its OUTCOME BAD_CAMERA.
+    Launch 0 returns only once every launch is done (the FINISHED count), so that the buffer is
+    complete when it has (a call stopped after binning counts none). ``sync`` must be zeroed
+    before a call (and its FILL barrier, queues and outcome before resuming there); ``os_yield``
+    is all_arrived's.
+    """
     # each launch derives the same projection (computing it costs less than packing it in Python)
     proj = camera_projection(cam, orthographic)
     if not has_usable_axes(cam):
@@ -1239,65 +1274,7 @@ def draw_visibility(launch: int, launches: int, first_stage: int, stop_after_bin
         rasterize_tile(tile, positions, indices, screen, depth_weights, binned_face, binned_rect, bin_start, bins,
                        samples, spp, cam, proj, tiles_x, out)
         k = take_next_item_from(sync, QUEUE_TILES)
-
-
-@wp.kernel
-def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after_binning: int, os_yield: wp.uint64,
-                        positions: wp.array(dtype=wp.vec3),
-                        indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
-                        depth_weights: wp.array(dtype=wp.float64), cam: CameraData, orthographic: int,
-                        samples: wp.array2d(dtype=wp.vec2), spp: int, min_vertex_share: int, batch_size: int,
-                        batch_stride: int, triangles: int, tiles_x: int, tile_stride: int,
-                        cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
-                        binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
-                        tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
-                        cursors: wp.array2d(dtype=wp.int32), bin_start: wp.array(dtype=wp.int32),
-                        bin_total: wp.array(dtype=wp.int64), bins: wp.array(dtype=wp.int32),
-                        cluster_lower: wp.array(dtype=wp.vec3), cluster_upper: wp.array(dtype=wp.vec3),
-                        cluster_axis: wp.array(dtype=wp.vec3), cluster_spread: wp.array(dtype=float),
-                        cluster_rect: wp.array(dtype=wp.vec4i), cluster_nearest: wp.array(dtype=wp.float64),
-                        sync: wp.array(dtype=wp.int32),
-                        out: wp.array2d(dtype=wp.uint64)):
-    """The whole visibility buffer: launched with one index on each of ``launches`` threads
-    (``launch`` = 0, 1, ...) side by side, which meet at spinning barriers (all_arrived) between
-    stages.
-
-    From START: the buffer's rows cleared and the vertices projected, in pieces taken from a
-    queue (launch 0 first decides on the occlusion pass), until all are done (all_done); then
-    batches of batch_size triangles taken from a queue shared by every launch, ticket t naming
-    batch (t mod launches) batch_stride + t / launches, so that launches running side by side
-    draw batches far apart in the mesh (and mostly apart on screen) rather than neighbours:
-    small triangles drawn into the buffer at once (atomically, as another launch may draw the same
-    sample), the others that may cover a sample listed by the launch that drew them (their owner)
-    with their screen rectangles at binned_face and binned_rect [owner triangles, +
-    binned_count[owner]) and counted per tile they touch in row ``owner`` of tile_counts (no
-    atomics), or the owner's bad_indices set for a triangle with an index out of range (it is not
-    read). Batches are small (a few clusters) so that launches finish a pass together; the
-    binning, owned per launch rather than per batch, does not grow with their number. With
-    clusters (cluster_lower... nonempty) the batches are drawn cluster by cluster (count_batch),
-    but for the clusters off screen or facing away from the eye where every triangle is flagged
-    for culling; where occlusion_pass_pays (launch 0 decides it, in ``sync``), in two passes:
-    first those facing the eye or not testable, the others deferred (their rectangle and nearest
-    depth kept in cluster_rect and cluster_nearest); then, once every launch has drawn its
-    first-pass batches, the deferred clusters that what the buffer holds by then does not hide
-    (is_occluded), their batches taken from a second queue. Launch 0
-    then lays out the bins (bin_offsets) and records the OUTCOME in ``sync``; all stop unless it
-    is BINNED (or if stop_after_binning, to time the parts apart). From FILL: each listed
-    triangle's slot appended to the bin of every tile its rectangle touches, owner by owner from
-    another queue; then tiles taken from a third queue, the k-th taken tile k tile_stride modulo
-    the tile count, each drawn by the launch that took it alone (rasterize_tile). Every queue
-    hands out work to whichever launch asks first, so one with cheaper work (culled back faces,
-    triangles off screen) takes more. The projection is cam's (camera_projection, parallel if
-    ``orthographic``); a camera without usable axes draws nothing, its OUTCOME BAD_CAMERA.
-    Launch 0 returns only once every launch is done (the FINISHED count), so that the buffer is
-    complete when it has. ``sync`` must be zeroed before a call (and its FILL barrier, FINISHED
-    count, queues and outcome before resuming there); ``os_yield`` is all_arrived's.
-    """
-    draw_visibility(launch, launches, first_stage, stop_after_binning, os_yield, positions, indices, vertex_count,
-                    screen, depth_weights, cam, orthographic, samples, spp, min_vertex_share, batch_size,
-                    batch_stride, triangles, tiles_x, tile_stride, cull_back_faces, binned_count, binned_face,
-                    binned_rect, tile_counts, bad_indices, cursors, bin_start, bin_total, bins, cluster_lower,
-                    cluster_upper, cluster_axis, cluster_spread, cluster_rect, cluster_nearest, sync, out)
     # launch 0 returns once every launch is done drawing, so that the caller need not wait for the
-    # pool threads' return to Python and their wake-up of it (~0.1 ms a call, development)
+    # pool threads' return to Python and their wake-up of it (~0.1 ms a call, development); the
+    # launches that stop earlier all stop at the same stage, having drawn all they draw
     all_done(sync, FINISHED, 1, wp.where(launch == 0, launches, 0), ABORTED, SPINS_BEFORE_YIELD, os_yield)

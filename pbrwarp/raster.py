@@ -481,7 +481,6 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
             raise InputError(f"too many triangle-tile pairs ({total}) for int32 bins")
         bins = scratch["bins"] = wp.empty(total, dtype=wp.int32, device="cpu")
     if split or outcome == int(rk.BINS_TOO_SMALL):
-        sync.numpy()[int(rk.FINISHED)] = 0
         run(int(rk.FILL), False)
     if counts is not None:
         tally = sync.numpy()
