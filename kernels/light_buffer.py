@@ -27,7 +27,7 @@ import warp as wp
 
 from .projection import Projection, camera_coordinates, clamped_rect, empty_rect, screen_point
 from .raster import clipped_rect, ray_triangle_intersection, triangle_corners
-from .robust import RAY_FAR
+from .robust import RAY_FAR, to_double
 from .shadow_map import CUBE_FACES, cube_face
 
 wp.set_module_options({"enable_backward": False})
@@ -148,11 +148,6 @@ def point_triangle_distance(p: wp.vec3d, a: wp.vec3d, b: wp.vec3d, c: wp.vec3d) 
             return wp.abs(wp.dot(p - a, n)) / wp.sqrt(n_sq)
     return wp.min(point_segment_distance(p, a, b),
                   wp.min(point_segment_distance(p, b, c), point_segment_distance(p, c, a)))
-
-
-@wp.func
-def to_double(p: wp.vec3) -> wp.vec3d:
-    return wp.vec3d(wp.float64(p[0]), wp.float64(p[1]), wp.float64(p[2]))
 
 
 @wp.func

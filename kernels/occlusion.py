@@ -17,6 +17,7 @@ snapping of vertices, which decides each triangle's facing in the rasterizer.
 import warp as wp
 
 from .projection import Projection, camera_coordinates, empty_rect, sampled_pixels_within, screen_point
+from .robust import to_double
 
 wp.set_module_options({"enable_backward": False})
 
@@ -49,15 +50,13 @@ SKIPPED = wp.constant(wp.float64(-2.0))
 @wp.func
 def triangle_normal(p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -> wp.vec3d:
     """(p1 - p0) x (p2 - p0) in float64: twice the area, along the counter-clockwise normal."""
-    q0 = wp.vec3d(wp.float64(p0[0]), wp.float64(p0[1]), wp.float64(p0[2]))
-    return wp.cross(wp.vec3d(wp.float64(p1[0]), wp.float64(p1[1]), wp.float64(p1[2])) - q0,
-                    wp.vec3d(wp.float64(p2[0]), wp.float64(p2[1]), wp.float64(p2[2])) - q0)
+    q0 = to_double(p0)
+    return wp.cross(to_double(p1) - q0, to_double(p2) - q0)
 
 
 @wp.func
 def box_centre(lo: wp.vec3, hi: wp.vec3) -> wp.vec3d:
-    return wp.vec3d(wp.float64(lo[0]) + wp.float64(hi[0]), wp.float64(lo[1]) + wp.float64(hi[1]),
-                    wp.float64(lo[2]) + wp.float64(hi[2])) * wp.float64(0.5)
+    return (to_double(lo) + to_double(hi)) * wp.float64(0.5)
 
 
 @wp.kernel
@@ -118,8 +117,7 @@ def faces_eye(proj: Projection, lo: wp.vec3, hi: wp.vec3, axis: wp.vec3) -> bool
     """Whether a cluster mostly faces the eye (its normals' axis points back along the view
     direction): the clusters drawn before the occlusion test, a guess that decides how much is
     culled, never what is drawn."""
-    return wp.dot(wp.vec3d(wp.float64(axis[0]), wp.float64(axis[1]), wp.float64(axis[2])),
-                  view_direction(proj, lo, hi)) < wp.float64(0.0)
+    return wp.dot(to_double(axis), view_direction(proj, lo, hi)) < wp.float64(0.0)
 
 
 @wp.func
@@ -135,8 +133,7 @@ def faces_away(proj: Projection, lo: wp.vec3, hi: wp.vec3, axis: wp.vec3, spread
     distance = wp.length(v)
     sin_sphere = wp.float64(0.0)
     if proj.orthographic == 0:
-        half_diagonal = wp.vec3d(wp.float64(hi[0]) - wp.float64(lo[0]), wp.float64(hi[1]) - wp.float64(lo[1]),
-                                 wp.float64(hi[2]) - wp.float64(lo[2])) * wp.float64(0.5)
+        half_diagonal = (to_double(hi) - to_double(lo)) * wp.float64(0.5)
         if not (wp.length(half_diagonal) < distance):
             return False
         sin_sphere = wp.length(half_diagonal) / distance
@@ -148,7 +145,7 @@ def faces_away(proj: Projection, lo: wp.vec3, hi: wp.vec3, axis: wp.vec3, spread
     cos_sum = cos_cone * cos_sphere - sin_cone * sin_sphere
     sin_total = sin_sum * wp.cos(BACK_FACE_MARGIN) + cos_sum * wp.sin(BACK_FACE_MARGIN)
     cos_total = cos_sum * wp.cos(BACK_FACE_MARGIN) - sin_sum * wp.sin(BACK_FACE_MARGIN)
-    a = wp.vec3d(wp.float64(axis[0]), wp.float64(axis[1]), wp.float64(axis[2]))
+    a = to_double(axis)
     # cos(view angle) > cos(right angle - total) = sin(total), the total below a right angle
     return cos_total > wp.float64(0.0) and wp.dot(a, v) > sin_total * wp.length(a) * distance
 
@@ -172,8 +169,7 @@ def outside_view(proj: Projection, lo: wp.vec3, hi: wp.vec3) -> bool:
     pixel beyond the image's edges (the rasterizer's sampled_pixel_range) plus the rounding."""
     m = proj.to_camera
     centre = box_centre(lo, hi)
-    half = wp.vec3d(wp.float64(hi[0]) - wp.float64(lo[0]), wp.float64(hi[1]) - wp.float64(lo[1]),
-                    wp.float64(hi[2]) - wp.float64(lo[2])) * wp.float64(0.5)
+    half = (to_double(hi) - to_double(lo)) * wp.float64(0.5)
     c = m * (centre - proj.eye)
     # the extents of the image of the box, grown by the rounding of its corners' coordinates
     magnitude = wp.vec3d(wp.abs(centre[0]) + half[0] + wp.abs(proj.eye[0]), wp.abs(centre[1]) + half[1]

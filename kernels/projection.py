@@ -5,6 +5,7 @@ share."""
 import warp as wp
 
 from .camera import CameraData
+from .robust import to_double
 
 wp.set_module_options({"enable_backward": False})
 
@@ -36,26 +37,21 @@ class Projection:
 
 
 @wp.func
-def as_vec3d(v: wp.vec3) -> wp.vec3d:
-    return wp.vec3d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2]))
-
-
-@wp.func
 def camera_projection(cam: CameraData, orthographic: int) -> Projection:
     """The Projection of ``cam`` in float64, the exact inverse of camera_ray_direction: to_camera
     inverts the matrix of columns right, up, forward (its rows b x c, c x a, a x b over the
     determinant, for columns a, b, c); or, ``orthographic`` nonzero, the parallel projection
     along forward whose view spans right and up (half-extents in world units) about the eye.
     Meaningful where has_usable_axes(cam)."""
-    a = as_vec3d(cam.right)
-    b = as_vec3d(cam.up)
-    c = as_vec3d(cam.forward)
+    a = to_double(cam.right)
+    b = to_double(cam.up)
+    c = to_double(cam.forward)
     row0 = wp.cross(b, c)
     row1 = wp.cross(c, a)
     row2 = wp.cross(a, b)
     det = wp.dot(a, row0)
     proj = Projection()
-    proj.eye = as_vec3d(cam.eye)
+    proj.eye = to_double(cam.eye)
     proj.to_camera = wp.mat33d(row0[0] / det, row0[1] / det, row0[2] / det, row1[0] / det, row1[1] / det,
                                row1[2] / det, row2[0] / det, row2[1] / det, row2[2] / det)
     proj.half_width = wp.float64(0.5) * wp.float64(cam.width)
@@ -74,7 +70,7 @@ def has_usable_axes(cam: CameraData) -> bool:
     """Whether cam's axes are finite and linearly independent (a determinant of magnitude at
     least 1e-300), as camera_projection needs. (An eye out of float range, as a camera framing
     a scene near float32's limit has, projects every vertex as not drawable: nothing is drawn.)"""
-    det = wp.dot(as_vec3d(cam.right), wp.cross(as_vec3d(cam.up), as_vec3d(cam.forward)))
+    det = wp.dot(to_double(cam.right), wp.cross(to_double(cam.up), to_double(cam.forward)))
     finite = wp.isfinite(cam.right) and wp.isfinite(cam.up) and wp.isfinite(cam.forward)
     return finite and wp.abs(det) >= wp.float64(1.0e-300)
 
@@ -88,7 +84,7 @@ def projection_of(cam: CameraData, orthographic: int, out: wp.array(dtype=Projec
 
 @wp.func
 def camera_coordinates(proj: Projection, p: wp.vec3) -> wp.vec3d:
-    return proj.to_camera * (wp.vec3d(wp.float64(p[0]), wp.float64(p[1]), wp.float64(p[2])) - proj.eye)
+    return proj.to_camera * (to_double(p) - proj.eye)
 
 
 @wp.func

@@ -42,6 +42,7 @@ from .projection import (
     sampled_pixel_range,
     screen_point,
 )
+from .robust import to_double
 from .sampling import multi_jittered_sample
 from .occlusion import (
     CLUSTER_SIZE,
@@ -598,7 +599,7 @@ def trace_triangle(face: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, rect: wp.ve
             d = camera_ray_direction(cam, p[0], p[1])
             hit, t, u, v = ray_triangle_intersection(cam.eye, d, p0, p1, p2)
             if hit:
-                z = wp.float64(t) * wp.dot(depth_row, wp.vec3d(wp.float64(d[0]), wp.float64(d[1]), wp.float64(d[2])))
+                z = wp.float64(t) * wp.dot(depth_row, to_double(d))
                 keep_nearest(out, py, col, visibility_entry(float(z), face), False)
 
 
