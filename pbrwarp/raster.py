@@ -64,10 +64,10 @@ class _Scratch(threading.local):
 _scratch = _Scratch()
 
 
-def _scratch_array(arrays: dict, kind: str, shape, dtype, zeroed: bool = False) -> wp.array:
+def _scratch_array(arrays: dict, kind: str, shape, dtype) -> wp.array:
     """An array of ``shape`` (a length or a tuple; every extent at least 1) of ``dtype``, reused
-    across calls, zeroed if asked: arrays is one thread's _scratch.arrays. The last view of each
-    kind is kept too, since making one costs more than the small arrays' whole use."""
+    across calls: arrays is one thread's _scratch.arrays. The last view of each kind is kept too,
+    since making one costs more than the small arrays' whole use."""
     shape = tuple(max(int(n), 1) for n in ((shape,) if isinstance(shape, (int, np.integer)) else shape))
     last = arrays.get((kind, "view"))
     if last is not None and last[0] == shape:
@@ -79,8 +79,6 @@ def _scratch_array(arrays: dict, kind: str, shape, dtype, zeroed: bool = False) 
             base = arrays[kind] = wp.empty(size, dtype=dtype, device="cpu")
         view = base[:size] if len(shape) == 1 else base[:size].reshape(shape)
         arrays[(kind, "view")] = (shape, view)
-    if zeroed:
-        view.zero_()
     return view
 
 
@@ -453,11 +451,10 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                                [k, threads, first_stage, int(stop_after_binning), _os_yield_address(), positions,
                                 indices, vertices, layout.screen, layout.depth_weights, cam, int(bool(orthographic)),
                                 samples, spp, MIN_VERTEX_SHARE, layout.batch_size, layout.batch_stride, triangles,
-                                layout.tiles_x,
-                                layout.tile_stride, cull_back_faces, layout.binned_count, layout.binned_face,
-                                layout.binned_rect, layout.tile_counts, layout.bad_indices, layout.cursors,
-                                layout.bin_start, layout.bin_total, bins, *cluster_arrays, layout.cluster_rect,
-                                layout.cluster_nearest, sync, out])
+                                layout.tiles_x, layout.tile_stride, cull_back_faces, layout.binned_count,
+                                layout.binned_face, layout.binned_rect, layout.tile_counts, layout.bad_indices,
+                                layout.cursors, layout.bin_start, layout.bin_total, bins, *cluster_arrays,
+                                layout.cluster_rect, layout.cluster_nearest, sync, out])
             except BaseException:
                 sync.numpy()[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one
                 raise
