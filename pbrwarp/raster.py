@@ -309,8 +309,12 @@ class _Layout:
     bin_total: wp.array
     cluster_rect: wp.array
     cluster_nearest: wp.array
-    # one block, zeroed before each call, holding binned_count, bad_indices, sync and tile_counts
+    # one block, zeroed before each call, holding binned_count, bad_indices, sync and tile_counts;
+    # and NumPy views of it and of sync, the cheapest way from Python into them (after a large
+    # frame Warp's array methods run with cold caches: ~0.1 ms a call, development)
     zeroed: wp.array
+    zeroed_view: np.ndarray
+    sync_view: np.ndarray
     binned_count: wp.array
     bad_indices: wp.array
     sync: wp.array
@@ -350,7 +354,8 @@ def _call_layout(scratch: dict, vertices: int, triangles: int, width: int, heigh
         bin_total=_scratch_array(scratch, "bin_total", 1, wp.int64),
         cluster_rect=_scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i),
         cluster_nearest=_scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64),
-        zeroed=zeroed, binned_count=zeroed[:threads], bad_indices=zeroed[threads:2 * threads],
+        zeroed=zeroed, zeroed_view=zeroed.numpy(), sync_view=zeroed[2 * threads:counts_end].numpy(),
+        binned_count=zeroed[:threads], bad_indices=zeroed[threads:2 * threads],
         sync=zeroed[2 * threads:counts_end], tile_counts=zeroed[counts_end:].reshape((threads, tiles)))
     scratch["layout"] = (key, layout)
     return layout
@@ -431,7 +436,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     scratch = _scratch.arrays  # the calling thread's
     cluster_count = len(clusters) if clusters is not None else 0
     layout = _call_layout(scratch, vertices, triangles, width, height, spp, threads, cluster_count)
-    layout.zeroed.zero_()
+    layout.zeroed_view.fill(0)
     # as long as the longest bins so far (a second pass grows them when a frame needs more)
     bins = scratch.get("bins")
     if bins is None:
@@ -456,17 +461,17 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                                 layout.cursors, layout.bin_start, layout.bin_total, bins, *cluster_arrays,
                                 layout.cluster_rect, layout.cluster_nearest, sync, out])
             except BaseException:
-                sync.numpy()[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one
+                layout.sync_view[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one
                 raise
 
         join = run_together(launch, threads, join=False)
-        if sync.numpy()[int(rk.ABORTED)] != 0:
+        if layout.sync_view[int(rk.ABORTED)] != 0:
             join()  # a pool thread's launch failed: its error, raised here
             raise RuntimeError("the raster's launches were aborted")
 
     split = timings is not None
     run(int(rk.START), split)
-    outcome = int(sync.numpy()[int(rk.OUTCOME)])
+    outcome = int(layout.sync_view[int(rk.OUTCOME)])
     if outcome == int(rk.BAD_CAMERA):
         raise _unusable_camera()
     if outcome == int(rk.BAD_INDEX):
@@ -480,7 +485,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     if split or outcome == int(rk.BINS_TOO_SMALL):
         run(int(rk.FILL), False)
     if counts is not None:
-        tally = sync.numpy()
+        tally = layout.sync_view
         counts.update(clusters=cluster_count, off_screen=int(tally[int(rk.CLUSTERS_OFF_SCREEN)]),
                       deferred=int(tally[int(rk.CLUSTERS_DEFERRED)]), occluded=int(tally[int(rk.CLUSTERS_OCCLUDED)]),
                       facing_away=int(tally[int(rk.CLUSTERS_FACING_AWAY)]))
