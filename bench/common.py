@@ -17,13 +17,19 @@ RESULTS = Path(__file__).resolve().parent / "results"
 def _arithmetic_kernel():
     import warp as wp
 
+    from pbrwarp.kernels.raster import all_done
+
     @wp.kernel(enable_backward=False, module="unique")
-    def dependent_arithmetic(steps: int, out: wp.array(dtype=float)):
+    def dependent_arithmetic(steps: int, launch: int, launches: int, finished: wp.array(dtype=wp.int32),
+                             out: wp.array(dtype=float)):
         # a chain of dependent square roots: compute only, nothing read or written on the way
         x = float(1.0)
         for _ in range(steps):
             x = wp.sqrt(x * x * 0.999999 + 1.0e-7)
         out[0] = x
+        # as the raster's launches end: launch 0 returns once every launch is done (slot 0 of
+        # ``finished`` counts them, slot 1 is the abort flag, never set)
+        all_done(finished, 0, 1, wp.where(launch == 0, launches, 0), 1, 1024, wp.uint64(0))
 
     return dependent_arithmetic
 
@@ -31,9 +37,10 @@ def _arithmetic_kernel():
 class DivisibleWork:
     """The machine's own yardstick for multicore speedups: a compute-only Warp kernel lasting
     ``seconds`` on one thread (calibrated), or split in equal parts over ``threads`` launches side
-    by side through pbrwarp.parallel.run_together, as the raster's are. Its speedup is what a
-    perfectly divisible kernel of that length gets here, the pool thread's start and this shared
-    machine's noise included."""
+    by side, dispatched and ended as the raster's are (pbrwarp.parallel.run_together without
+    joining, launch 0 returning once all are done). Its speedup is what a perfectly divisible
+    kernel of that length gets here, the pool thread's start and this shared machine's noise
+    included."""
 
     def __init__(self, seconds: float, threads: int):
         import warp as wp
@@ -41,31 +48,34 @@ class DivisibleWork:
         self.kernel = _arithmetic_kernel()
         self.threads = threads
         self.outs = [wp.zeros(1, dtype=float, device="cpu") for _ in range(threads)]
+        self.finished = wp.zeros(2, dtype=wp.int32, device="cpu")
+        self.finished_view = self.finished.numpy()
         self.steps = 1 << 16
         self.one()  # compiled or loaded
         calibration = 1 << 20
         t0 = time.perf_counter()
-        self._launch(0, calibration)
+        self._run(1, calibration)
         self.steps = max(threads, round(seconds * calibration / (time.perf_counter() - t0)))
 
-    def _launch(self, k: int, steps: int):
+    def _run(self, threads: int, steps: int):
         import warp as wp
 
-        wp.launch(self.kernel, dim=1, inputs=[steps, self.outs[k]], device="cpu")
-
-    def one(self):
-        self._launch(0, self.steps)
-
-    def split(self):
         from pbrwarp.parallel import run_together
 
-        run_together(lambda k: self._launch(k, self.steps // self.threads), self.threads)
+        self.finished_view.fill(0)
+        run_together(lambda k: wp.launch(self.kernel, dim=1, device="cpu",
+                                         inputs=[steps // threads, k, threads, self.finished, self.outs[k]]),
+                     threads, join=False)
+
+    def one(self):
+        self._run(1, self.steps)
+
+    def split(self):
+        self._run(self.threads, self.steps)
 
     def wake(self):
         """Run a moment on every thread, so that the pool thread is awake for the next call."""
-        from pbrwarp.parallel import run_together
-
-        run_together(lambda k: self._launch(k, 1), self.threads)
+        self._run(self.threads, self.threads)
 
 
 def median_time(fn, repeats: int = 5, warmup: int = 1) -> float:
