@@ -115,9 +115,9 @@ _PLAIN_NUMBERS = (int, float, bool)
 # cores by bench/visibility.py (bench/results/visibility.md, least squares weighted by 1/time):
 # raster seconds ~ RASTER_SECONDS_PER_TRIANGLE * triangles + RASTER_SECONDS_PER_SAMPLE * samples,
 # ray cast seconds ~ RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE * samples * log2(triangles).
-RASTER_SECONDS_PER_TRIANGLE = 12.2e-9
-RASTER_SECONDS_PER_SAMPLE = 6.51e-9
-RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 7.87e-9
+RASTER_SECONDS_PER_TRIANGLE = 10.5e-9
+RASTER_SECONDS_PER_SAMPLE = 5.06e-9
+RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 7.21e-9
 
 KERNELS = (rk.sample_positions, rk.visibility_pipeline, ok.cluster_bounds, projection_of)
 CLUSTER_SIZE = int(ok.CLUSTER_SIZE)
