@@ -27,11 +27,11 @@ RADIANCE_MAX = wp.constant(65504.0)
 FLOAT32_MAX = wp.constant(3.4028234663852886e38)
 
 
-
 @wp.func
 def to_double(v: wp.vec3) -> wp.vec3d:
     """v in float64 (exactly: every float32 is a float64)."""
     return wp.vec3d(wp.float64(v[0]), wp.float64(v[1]), wp.float64(v[2]))
+
 
 @wp.func
 def gamma(n: float) -> float:

@@ -340,6 +340,7 @@ def _call_layout(scratch: dict, vertices: int, triangles: int, width: int, heigh
     # per-tile counts; then the shared slots
     zeroed = _scratch_array(scratch, "zeroed", 2 * threads + sync_slots + threads * tiles, wp.int32)
     counts_end = 2 * threads + sync_slots
+    sync = zeroed[2 * threads:counts_end]
     layout = _Layout(
         tiles_x=tiles_x, tiles=tiles, batch_size=batch_size, batch_stride=math.ceil(batches / threads),
         tile_stride=_tile_stride(tiles),
@@ -354,9 +355,8 @@ def _call_layout(scratch: dict, vertices: int, triangles: int, width: int, heigh
         bin_total=_scratch_array(scratch, "bin_total", 1, wp.int64),
         cluster_rect=_scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i),
         cluster_nearest=_scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64),
-        zeroed=zeroed, zeroed_view=zeroed.numpy(), sync_view=zeroed[2 * threads:counts_end].numpy(),
-        binned_count=zeroed[:threads], bad_indices=zeroed[threads:2 * threads],
-        sync=zeroed[2 * threads:counts_end], tile_counts=zeroed[counts_end:].reshape((threads, tiles)))
+        zeroed=zeroed, zeroed_view=zeroed.numpy(), sync_view=sync.numpy(), binned_count=zeroed[:threads],
+        bad_indices=zeroed[threads:2 * threads], sync=sync, tile_counts=zeroed[counts_end:].reshape((threads, tiles)))
     scratch["layout"] = (key, layout)
     return layout
 
