@@ -112,7 +112,8 @@ def render_kernel(features):
                 radiance = radiance + from_environment
         return radiance, cache
 
-    @wp.func
+    # inlined: a call would copy the scene's and the light buffers' structs (~1 KB) per shadow ray
+    @wp.func(inline=True)
     def shadow_ray_occluded(scene: SceneData, buffers: LightBuffers, light: int, h: SurfaceHit, ls: LightSample,
                             cached: int):
         """(whether a surface blocks the segment from the hit to light ``light``, the triangle
