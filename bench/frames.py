@@ -136,9 +136,9 @@ def main(argv=None):
         lines.append(f"| {r['scene']} | " + " | ".join(f"{r[k]:.1f}" for k in keys) + f" | {embree} |")
     lines += ["", "Whole frames (spp 1, every core, medians; every variant and the Embree pass timed in turn, "
               "round after round). \"rays\": shadow rays through the light buffers "
-              "built for an earlier frame (same lights and geometry; their triangle interiors were marked when "
-              "they were first reused), \"rays rebuilt\": built for this frame (six 512² cube faces of "
-              "triangle lists for the point light, no interior marks); \"map reused\": the maps rendered "
+              "built for an earlier frame (same lights and geometry; their triangle interiors and the floor's "
+              "regions were marked when they were first reused), \"rays rebuilt\": built for this frame (six "
+              "512² cube faces of triangle lists for the point light, no interior or region marks); \"map reused\": the maps rendered "
               "for an earlier frame serve this one; \"map rebuilt\": rendered for this frame, six 1024² cube "
               "faces for the point light. \"first frame, new process\": pw.render with default options in a "
               "fresh Python process, the scene built and the kernels and albedo tables in the disk cache (the "

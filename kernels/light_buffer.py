@@ -13,7 +13,10 @@ convex surface that is every triangle facing the light. On a noisy scanned one, 
 concave creases rise in front of each other's planes; there a triangle's interior (the triangle
 shrunk about its centroid) is marked clear where no listed triangle comes near the solid its rays
 sweep towards the light (a pyramid to a point or spot light, a prism towards a directional one),
-and rays leaving that interior are lit without a query too.
+and rays leaving that interior are lit without a query too. A large triangle that something
+shadows in part (a floor under a mesh) is cut into regions, squares of its barycentric plane
+a few cells across, each marked clear as an interior would be, so that the rays from its lit
+part need no query either.
 
 Views are the shadow maps' (kernels/shadow_map.py): a cube of six for point lights and wide spot
 lights, one pinhole view for narrow spots, a parallel view behind the scene for directional lights,
@@ -75,17 +78,30 @@ ORIGIN_DEVIATION = wp.constant(wp.float64(1.0e-5))
 # triangle that blocked the previous shadow ray of the row, tested before the light buffer is
 # asked, since neighbouring pixels are mostly shadowed by the same triangle.
 SHADOW_CACHE_LIGHTS = wp.constant(4)
-# triangle_clear codes: no mark, every ray of the triangle clear, or (INTERIOR_CLEAR + k) the rays
-# leaving its part shrunk about its centroid by INTERIOR_SHRINKS[k] clear (interior_clear_level).
+# triangle_clear codes: no mark, every ray of the triangle clear, (INTERIOR_CLEAR + k) the rays
+# leaving its part shrunk about its centroid by INTERIOR_SHRINKS[k] clear (interior_clear_level),
+# or (REGIONS_CLEAR + t) the rays leaving some of its regions clear, as the light's t-th entry of
+# region_grids says (mark_clear_regions).
 NOT_CLEAR = wp.constant(wp.uint8(0))
 CLEAR = wp.constant(wp.uint8(1))
 INTERIOR_CLEAR = wp.constant(wp.uint8(2))
 # Shrinks tried in turn, the smallest first: a ray whose hit point's barycentric coordinates are
 # all at least s / 3 leaves the triangle shrunk by s (it keeps 1 - s of each corner's distance to
-# the centroid).
-INTERIOR_LEVELS = 6
+# the centroid). The first, 0, is the whole triangle, which the solids can show clear where the
+# cells' plane tests (mark_clear_triangles) could not.
+INTERIOR_LEVELS = 7
 InteriorShrinks = wp.types.vector(length=INTERIOR_LEVELS, dtype=wp.float32)
-INTERIOR_SHRINKS = wp.constant(InteriorShrinks(0.02, 0.05, 0.1, 0.2, 0.35, 0.6))
+INTERIOR_SHRINKS = wp.constant(InteriorShrinks(0.0, 0.02, 0.05, 0.1, 0.2, 0.35, 0.6))
+REGIONS_CLEAR = wp.constant(wp.uint8(int(INTERIOR_CLEAR) + INTERIOR_LEVELS))
+# Large triangles (a floor) are shadowed in parts: their regions are marked one by one. A region
+# is a square of the barycentric plane, (b0, b1) in [i, i + 1) x [j, j + 1) over the grid size n,
+# so that a hit point finds its region from its barycentrics alone; at most MAX_REGION_TRIANGLES
+# triangles per light have regions (the codes left in a uint8).
+MAX_REGION_TRIANGLES = wp.constant(255 - int(REGIONS_CLEAR))
+# A hit point's float32 barycentrics are within this of the exact ones (a few ulps of 1): the
+# regions are grown by three times it (b0 = 1 - b1 - b2 adds two), and a point whose barycentrics
+# lie farther than it outside the triangle (an edge sample's extrapolated ones) is not looked up.
+REGION_SLACK = wp.constant(1.0e-5)
 # Triangles last tested for a triangle's interior, skipped when its other cells list them again.
 RECENT_CHECKS = 16
 RecentChecks = wp.types.vector(length=RECENT_CHECKS, dtype=wp.int32)
@@ -119,6 +135,10 @@ class LightBuffers:
     # every ray leaving its interior (shrunk by INTERIOR_SHRINKS[k]) meets nothing, so that those
     # need no query, else NOT_CLEAR
     triangle_clear: wp.array(dtype=wp.uint8)
+    # per light and region triangle (light * MAX_REGION_TRIANGLES + t): (grid size n, first entry of
+    # region_clear); region (i, j) is entry first + i n + j, 1 where every ray leaving it is clear
+    region_grids: wp.array(dtype=wp.vec2i)
+    region_clear: wp.array(dtype=wp.uint8)
     triangles: int
     resolution: int
 
@@ -274,11 +294,19 @@ def largest_coordinate(p: wp.vec3d) -> wp.float64:
 
 
 @wp.func
-def farness(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d) -> float:
+def origin_magnitude(p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d, origin_scale: wp.float64) -> wp.float64:
+    """What the rounding of shadow ray origins spawned on the triangle scales with: its largest
+    coordinate, or ``origin_scale``, that of the triangle it is a region of, if larger."""
+    return wp.max(wp.max(largest_coordinate(p0), origin_scale), wp.max(largest_coordinate(p1), largest_coordinate(p2)))
+
+
+@wp.func
+def farness(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d, origin_scale: wp.float64) -> float:
     """An upper bound of the distance to the light (or of the depth in a parallel view) of every
-    shadow ray origin spawned on the triangle, comparable with cell_near."""
-    deviation = ORIGIN_DEVIATION * wp.max(largest_coordinate(p0), wp.max(largest_coordinate(p1),
-                                                                        largest_coordinate(p2)))
+    shadow ray origin spawned on the triangle, comparable with cell_near. ``origin_scale``: the
+    largest coordinate of the triangle the origins' rounding comes from, if this one is a part
+    of it (0 otherwise)."""
+    deviation = ORIGIN_DEVIATION * origin_magnitude(p0, p1, p2, origin_scale)
     far = wp.float64(0.0)
     if proj.orthographic != 0:
         axis = wp.vec3d(proj.to_camera[2, 0], proj.to_camera[2, 1], proj.to_camera[2, 2])
@@ -326,7 +354,7 @@ def light_plane(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d) -> L
     plane.light_side = wp.float64(0.0)
     if side * side > LIGHT_SIDE_MARGIN * LIGHT_SIDE_MARGIN * plane.normal_sq * wp.dot(towards, towards):
         plane.light_side = wp.sign(side)
-    plane.far = farness(proj, p0, p1, p2)
+    plane.far = farness(proj, p0, p1, p2, wp.float64(0.0))
     return plane
 
 
@@ -340,6 +368,18 @@ def light_planes(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.
         c = triangle_corners(indices, face)
         planes[face] = light_plane(proj, to_double(positions[c[0]]), to_double(positions[c[1]]),
                                    to_double(positions[c[2]]))
+
+
+@wp.func
+def behind_light_plane(plane: LightPlane, origin: wp.vec3d, q0: wp.vec3d, q1: wp.vec3d, q2: wp.vec3d) -> bool:
+    """Whether triangle q lies on or behind the plane (through ``origin``), so that no shadow ray
+    leaving the plane's triangle towards the light can meet it (never where the light lies too
+    close to the plane: light_side 0)."""
+    if plane.light_side == wp.float64(0.0):
+        return False
+    return (behind_plane(plane.normal, plane.normal_sq, plane.light_side, origin, q0)
+            and behind_plane(plane.normal, plane.normal_sq, plane.light_side, origin, q1)
+            and behind_plane(plane.normal, plane.normal_sq, plane.light_side, origin, q2))
 
 
 @wp.func
@@ -408,12 +448,13 @@ def ray_stray(largest: wp.float64, travel: wp.float64, magnitude: wp.float64) ->
 
 
 @wp.func
-def spread_cells(buffers: LightBuffers, view: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3):
+def spread_cells(buffers: LightBuffers, view: int, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, origin_scale: wp.float64):
     """(RAYS_*, cell rectangle) for the shadow rays leaving the triangle that pick view ``view``. A
     ray leaves within ORIGIN_DEVIATION of the triangle and runs towards the light, missing it by
     its direction's rounding: seen from a point light it lies within an angle `spread` of the
     triangle, in a parallel view within `stray` (world units) of it, and the triangle's rectangle
-    grown by that many cells must stay in the same cells, inside the view."""
+    grown by that many cells must stay in the same cells, inside the view. ``origin_scale`` as
+    for farness."""
     proj = buffers.views[view]
     c0 = camera_coordinates(proj, p0)
     c1 = camera_coordinates(proj, p1)
@@ -422,7 +463,7 @@ def spread_cells(buffers: LightBuffers, view: int, p0: wp.vec3, p1: wp.vec3, p2:
     d0 = to_double(p0)
     d1 = to_double(p1)
     d2 = to_double(p2)
-    largest = wp.max(largest_coordinate(d0), wp.max(largest_coordinate(d1), largest_coordinate(d2)))
+    largest = origin_magnitude(d0, d1, d2, origin_scale)
     magnitude = wp.max(largest, largest_coordinate(proj.eye))
     grow = zero
     if proj.orthographic != 0:
@@ -470,7 +511,7 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
                               p2: wp.vec3) -> bool:
     """Whether every shadow ray leaving the triangle that picks pinhole view ``view`` lands in cells
     where it is clear (true for a cube face it lies wholly outside of: its rays pick another)."""
-    where, r = spread_cells(buffers, view, p0, p1, p2)
+    where, r = spread_cells(buffers, view, p0, p1, p2, wp.float64(0.0))
     if where == RAYS_ELSEWHERE:
         return cube
     if where == RAYS_UNKNOWN:
@@ -593,7 +634,7 @@ def shrunk_solid(proj: Projection, d0: wp.vec3d, d1: wp.vec3d, d2: wp.vec3d, lev
 @wp.func
 def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int,
                          positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), p0: wp.vec3,
-                         p1: wp.vec3, p2: wp.vec3, level: int) -> int:
+                         p1: wp.vec3, p2: wp.vec3, level: int, origin_scale: wp.float64) -> int:
     """The first of INTERIOR_SHRINKS from ``level`` on (INTERIOR_LEVELS for none) such that no
     shadow ray leaving the triangle shrunk by it about its centroid and picking view ``view`` can
     meet a triangle (``level`` itself for a cube face the triangle lies wholly outside of).
@@ -604,14 +645,16 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
     sweeps towards the light (shrunk_solid). It can meet only triangles its cells list nearer to
     the light than the triangle's farness, and none of those comes within `margin` of that solid:
     twice ray_stray, and ORIGIN_DEVIATION of the coordinates' magnitude for the ray-triangle
-    test's own rounding (about a float32 ulp).
+    test's own rounding (about a float32 ulp); nor can they meet those on or behind the plane of
+    triangle ``face``, which they leave towards the light (as mark_clear_entries argues).
     Unlike the triangle's own plane, in front of which its neighbours across a concave crease
     rise, the solid leaves them out where they face the light too or lean away from it. A
     smaller shrink's solid holds a larger one's, so a triangle clear of it is clear of every
-    later one."""
+    later one. The triangle may be a region of triangle ``face`` (``origin_scale`` as for
+    farness)."""
     if level >= INTERIOR_LEVELS:
         return INTERIOR_LEVELS
-    where, r = spread_cells(buffers, view, p0, p1, p2)
+    where, r = spread_cells(buffers, view, p0, p1, p2, origin_scale)
     if where == RAYS_ELSEWHERE:
         return wp.where(cube, level, INTERIOR_LEVELS)
     if where == RAYS_UNKNOWN:
@@ -620,9 +663,12 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
     d0 = to_double(p0)
     d1 = to_double(p1)
     d2 = to_double(p2)
-    largest = wp.max(largest_coordinate(d0), wp.max(largest_coordinate(d1), largest_coordinate(d2)))
+    corners = triangle_corners(indices, face)
+    plane_origin = to_double(positions[corners[0]])
+    plane = light_plane(proj, plane_origin, to_double(positions[corners[1]]), to_double(positions[corners[2]]))
+    largest = origin_magnitude(d0, d1, d2, origin_scale)
     magnitude = wp.max(largest, largest_coordinate(proj.eye))
-    far = farness(proj, d0, d1, d2)
+    far = farness(proj, d0, d1, d2, origin_scale)
     margin = wp.float64(2.0) * ray_stray(largest, wp.float64(far), magnitude) + magnitude * ORIGIN_DEVIATION
     solid = shrunk_solid(proj, d0, d1, d2, level, far)
     smallest = shrunk_solid(proj, d0, d1, d2, INTERIOR_LEVELS - 1, far)
@@ -647,7 +693,8 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
                     q0 = to_double(positions[c[0]])
                     q1 = to_double(positions[c[1]])
                     q2 = to_double(positions[c[2]])
-                    if not solid_separated(solid, q0, q1, q2, margin):
+                    if not behind_light_plane(plane, plane_origin, q0, q1, q2) and not solid_separated(solid, q0, q1,
+                                                                                                      q2, margin):
                         # a later shrink's smaller solid, if the smallest one is clear of q
                         if not solid_separated(smallest, q0, q1, q2, margin):
                             return INTERIOR_LEVELS
@@ -691,9 +738,79 @@ def mark_clear_interiors(buffers: LightBuffers, light: int, positions: wp.array(
             level = int(0)
             for v in range(span[0], span[0] + span[1]):
                 level = interior_clear_level(buffers, v, span[1] == CUBE_FACES, face, positions, indices,
-                                             positions[c[0]], positions[c[1]], positions[c[2]], level)
+                                             positions[c[0]], positions[c[1]], positions[c[2]], level,
+                                             wp.float64(0.0))
             if level < INTERIOR_LEVELS:
                 buffers.triangle_clear[light * buffers.triangles + face] = INTERIOR_CLEAR + wp.uint8(level)
+
+
+@wp.func
+def region_corner(p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d, b0: wp.float64, b1: wp.float64) -> wp.vec3:
+    """The point with barycentric coordinates (b0, b1, 1 - b0 - b1), in float32."""
+    return wp.vec3(p2 + (p0 - p2) * b0 + (p1 - p2) * b1)
+
+
+@wp.func
+def region_part_is_clear(buffers: LightBuffers, light: int, face: int, positions: wp.array(dtype=wp.vec3),
+                         indices: wp.array(dtype=wp.int32), c0: wp.vec3, c1: wp.vec3, c2: wp.vec3,
+                         origin_scale: wp.float64) -> bool:
+    """Whether every shadow ray towards ``light`` leaving triangle c (a part of triangle ``face``)
+    meets nothing, in every view of the light: its first interior level, the whole of it."""
+    span = buffers.light_views[light]
+    for v in range(span[0], span[0] + span[1]):
+        if interior_clear_level(buffers, v, span[1] == CUBE_FACES, face, positions, indices, c0, c1, c2, 0,
+                                origin_scale) != 0:
+            return False
+    return True
+
+
+@wp.kernel
+def mark_clear_regions(buffers: LightBuffers, light: int, positions: wp.array(dtype=wp.vec3),
+                       indices: wp.array(dtype=wp.int32), face: int, grid: wp.vec2i, first: int, end: int):
+    """Per region r = i n + j in [first, end) of triangle ``face``'s grid (size n = grid[0], flags
+    from grid[1] on): 1 in region_clear where every shadow ray towards ``light`` leaving the region
+    meets nothing. The region, grown by three REGION_SLACKs, is a parallelogram: two triangles,
+    each shown clear as an interior would be (the float32 rounding of their corners is far within
+    the origins' deviation, taken from the whole triangle's coordinates)."""
+    c = triangle_corners(indices, face)
+    p0 = to_double(positions[c[0]])
+    p1 = to_double(positions[c[1]])
+    p2 = to_double(positions[c[2]])
+    scale = wp.max(largest_coordinate(p0), wp.max(largest_coordinate(p1), largest_coordinate(p2)))
+    n = grid[0]
+    grow = wp.float64(3.0 * REGION_SLACK)
+    start = first + wp.tid() * ITEMS_PER_THREAD
+    for r in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
+        i = r // n
+        j = r % n
+        clear = wp.uint8(0)
+        if i + j < n:
+            a0 = wp.float64(i) / wp.float64(n) - grow
+            a1 = wp.float64(i + 1) / wp.float64(n) + grow
+            e0 = wp.float64(j) / wp.float64(n) - grow
+            e1 = wp.float64(j + 1) / wp.float64(n) + grow
+            q00 = region_corner(p0, p1, p2, a0, e0)
+            q10 = region_corner(p0, p1, p2, a1, e0)
+            q11 = region_corner(p0, p1, p2, a1, e1)
+            q01 = region_corner(p0, p1, p2, a0, e1)
+            if (region_part_is_clear(buffers, light, face, positions, indices, q00, q10, q11, scale)
+                    and region_part_is_clear(buffers, light, face, positions, indices, q00, q11, q01, scale)):
+                clear = wp.uint8(1)
+        buffers.region_clear[grid[1] + r] = clear
+
+
+@wp.func
+def region_is_clear(buffers: LightBuffers, light: int, mark: wp.uint8, b0: float, b1: float, b2: float) -> bool:
+    """Whether the region of the point with barycentric coordinates (b0, b1, b2) of a triangle with
+    region mark ``mark`` is marked clear (mark_clear_regions)."""
+    if b0 < -REGION_SLACK or b1 < -REGION_SLACK or b2 < -REGION_SLACK:
+        return False
+    grid = buffers.region_grids[light * MAX_REGION_TRIANGLES + int(mark - REGIONS_CLEAR)]
+    n = grid[0]
+    i = wp.clamp(int(b0 * float(n)), 0, n - 1)
+    # where b0 + b1 rounds above 1, the region below it (grown by the slack) holds the point
+    j = wp.clamp(int(b1 * float(n)), 0, n - 1 - i)
+    return buffers.region_clear[grid[1] + i * n + j] != wp.uint8(0)
 
 
 @wp.func
@@ -716,12 +833,15 @@ def triangle_is_clear(buffers: LightBuffers, light: int, face: int) -> bool:
 def ray_leaves_clear(buffers: LightBuffers, light: int, face: int, b0: float, b1: float, b2: float) -> bool:
     """Whether the shadow ray towards ``light`` from the point of triangle ``face`` with
     barycentric coordinates (b0, b1, b2) meets nothing, known without a query: the whole triangle
-    is clear, or its interior (mark_clear_triangles) holds the point."""
+    is clear, or its clear interior (mark_clear_interiors) or a clear region of it
+    (mark_clear_regions) holds the point."""
     mark = clear_mark(buffers, light, face)
     if mark == CLEAR:
         return True
     if mark < INTERIOR_CLEAR:
         return False
+    if mark >= REGIONS_CLEAR:
+        return region_is_clear(buffers, light, mark, b0, b1, b2)
     least = INTERIOR_SHRINKS[int(mark - INTERIOR_CLEAR)] / 3.0
     return b0 >= least and b1 >= least and b2 >= least
 

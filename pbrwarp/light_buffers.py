@@ -3,8 +3,9 @@ triangles seen through each cell of a grid of directions, nearest first. Built o
 the same views as the shadow maps and kept on the scene while its geometry and the lights'
 placement stay the same; a shadow ray tests a handful of triangles instead of walking the BVH, or
 none from a triangle marked clear of the light (nothing nearer to the light in its cells lies in
-front of its plane) or from the marked interior of one (nothing comes near the solid that
-interior's rays sweep towards the light)."""
+front of its plane), from the marked interior of one (nothing comes near the solid that
+interior's rays sweep towards the light), or from a marked region of a large one (a floor, lit
+but for the shadows on it)."""
 
 from __future__ import annotations
 
@@ -34,6 +35,15 @@ MAX_ENTRIES_PER_CELL = 8
 WORK_BLOCKS_PER_THREAD = 4
 # Fraction taken off the float32 distance from a light to the nearest surface.
 CLEARANCE_MARGIN = 1.0e-3
+# Regions of a large triangle (kernels/light_buffer.mark_clear_regions) span about REGION_CELLS
+# cells across as the light sees them: smaller ones follow a shadow's outline more closely and cost
+# more to mark. A triangle not clear of a light gets a grid of regions if it has at least
+# MIN_REGION_GRID of them per side, of at most MAX_REGION_GRID (65,536 flags); a light gets at
+# most MAX_REGIONS_PER_LIGHT flags.
+REGION_CELLS = 16
+MIN_REGION_GRID = 4
+MAX_REGION_GRID = 256
+MAX_REGIONS_PER_LIGHT = 1 << 22
 
 
 def launch_threads(items: int) -> int:
@@ -146,7 +156,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
             block = v * cells + row * RESOLUTION
             return start[min(block + rows * RESOLUTION, (v + 1) * cells)] > start[block]
 
-        run_all(plane, _triangle_blocks(triangles, threads), threads)
+        run_all(plane, _work_blocks(triangles, threads), threads)
         run_all(finish, [(v, row) for v in range(first, first + n) for row in range(0, RESOLUTION, rows)
                          if filled(v, row)], threads)
     buffers = lb.LightBuffers()
@@ -158,6 +168,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     buffers.cell_start, buffers.cell_faces, buffers.cell_near = cell_start, cell_faces, cell_near
     buffers.cell_clear = cell_clear
     buffers.triangle_clear = wp.zeros(max(len(scene.lights) * triangles, 1), dtype=wp.uint8, device="cpu")
+    buffers.region_grids, buffers.region_clear = _no_regions()
     buffers.triangles = triangles
     buffers.resolution = RESOLUTION
     _mark_triangles(lb.mark_clear_triangles, buffers, gpu, threads, parallel_views=False)
@@ -167,8 +178,83 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
 
 def mark_interiors(buffers: lb.LightBuffers, gpu, threads: int):
     """Mark the interiors of ``buffers``' triangles not clear of their lights as a whole
-    (kernels/light_buffer.mark_clear_interiors), every light's; build does it on the first reuse."""
+    (kernels/light_buffer.mark_clear_interiors), then the regions of the large ones left
+    (mark_clear_regions), every light's; build does it on the first reuse."""
     _mark_triangles(lb.mark_clear_interiors, buffers, gpu, threads, parallel_views=True)
+    _mark_regions(buffers, gpu, threads)
+
+
+def _no_regions():
+    return wp.zeros(1, dtype=wp.vec2i, device="cpu"), wp.zeros(1, dtype=wp.uint8, device="cpu")
+
+
+def region_grid_sizes(buffers: lb.LightBuffers, light: int, corners: np.ndarray) -> np.ndarray:
+    """Per triangle (``corners``: (n, 3, 3) float64), the side of a grid of regions REGION_CELLS
+    cells across as ``light``'s views see them (0 where fewer than MIN_REGION_GRID): the longest
+    edge over the nearest the triangle may come to the light (no nearer than its clearance), in
+    cells per radian, or in a parallel view in cells per unit."""
+    first, count = buffers.light_views.numpy()[light]
+    view = buffers.views.numpy()[first]
+    longest = np.max(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2), axis=1)
+    if view["orthographic"]:
+        rows = np.asarray(view["to_camera"], dtype=np.float64).reshape(3, 3)
+        across = longest * max(view["half_width"] * np.linalg.norm(rows[0]), view["half_height"] * np.linalg.norm(rows[1]))
+    else:
+        to_corners = np.min(np.linalg.norm(corners - np.asarray(view["eye"], dtype=np.float64), axis=2), axis=1)
+        nearest = np.maximum(to_corners - longest, float(buffers.clearance.numpy()[light]))
+        per_radian = float(buffers.view_cells_per_radian.numpy()[first:first + count].max())
+        across = np.divide(longest, nearest, out=np.full_like(longest, np.inf), where=nearest > 0) * per_radian
+    size = np.minimum(np.ceil(across / REGION_CELLS), MAX_REGION_GRID)
+    return np.where(size >= MIN_REGION_GRID, size, 0).astype(np.int64)
+
+
+def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int):
+    """Give the largest triangles not otherwise marked for a light (at most MAX_REGION_TRIANGLES)
+    grids of regions, mark which are clear, then point the triangles' marks at their grids."""
+    triangles = buffers.triangles
+    spans = buffers.light_views.numpy()
+    marks = buffers.triangle_clear.numpy()  # a view
+    corners = gpu.data.positions.numpy().astype(np.float64)[gpu.data.indices.numpy().reshape(-1, 3)]
+    per_light = int(lb.MAX_REGION_TRIANGLES)
+    grids = np.zeros((len(spans) * per_light, 2), dtype=np.int32)
+    chosen = []  # (light, slot, face)
+    total = 0
+    for light, (_, count) in enumerate(spans):
+        unmarked = np.flatnonzero(marks[light * triangles:(light + 1) * triangles] == int(lb.NOT_CLEAR))
+        if count == 0 or len(unmarked) == 0:
+            continue
+        size = region_grid_sizes(buffers, light, corners[unmarked])
+        order = np.argsort(-size, kind="stable")[:per_light]
+        flags = 0
+        for slot, k in enumerate(order[size[order] > 0]):
+            n = int(size[k])
+            if flags + n * n > MAX_REGIONS_PER_LIGHT:
+                break
+            grids[light * per_light + slot] = (n, total)
+            chosen.append((light, slot, int(unmarked[k])))
+            flags += n * n
+            total += n * n
+    if not chosen:
+        return
+    buffers.region_grids = wp.array(grids, dtype=wp.vec2i, device="cpu")
+    buffers.region_clear = huge_pages.zeros(total, wp.uint8)
+
+    def mark(job):
+        light, slot, face, start, end = job
+        n, first = (int(x) for x in grids[light * per_light + slot])
+        wp.launch(lb.mark_clear_regions, dim=launch_threads(end - start), device="cpu",
+                  inputs=[buffers, light, gpu.data.positions, gpu.data.indices, face, wp.vec2i(n, first), start, end])
+
+    load_for_cpu(lb.mark_clear_regions)
+    jobs = []
+    for light, slot, face in chosen:
+        n = int(grids[light * per_light + slot][0])
+        for start, end in _work_blocks(n * n, threads):
+            jobs.append((light, slot, face, start, end))
+    run_all(mark, jobs, threads)
+    # the marks last, once the flags they point to are all written
+    for light, slot, face in chosen:
+        marks[light * triangles + face] = int(lb.REGIONS_CLEAR) + slot
 
 
 def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int, parallel_views: bool):
@@ -184,14 +270,14 @@ def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int, paralle
         wp.launch(kernel, dim=launch_threads(end - start), device="cpu",
                   inputs=[buffers, light, gpu.data.positions, gpu.data.indices, start, end])
 
-    run_all(mark, [(light, block) for light in lights for block in _triangle_blocks(buffers.triangles, threads)],
+    run_all(mark, [(light, block) for light in lights for block in _work_blocks(buffers.triangles, threads)],
             threads)
 
 
-def _triangle_blocks(triangles: int, threads: int) -> list[tuple[int, int]]:
-    """[start, end) blocks of the triangles, WORK_BLOCKS_PER_THREAD per thread."""
-    per_block = max(-(-triangles // (WORK_BLOCKS_PER_THREAD * threads)), 1)
-    return [(start, min(start + per_block, triangles)) for start in range(0, triangles, per_block)]
+def _work_blocks(items: int, threads: int) -> list[tuple[int, int]]:
+    """[start, end) blocks of ``items`` (triangles, regions), WORK_BLOCKS_PER_THREAD per thread."""
+    per_block = max(-(-items // (WORK_BLOCKS_PER_THREAD * threads)), 1)
+    return [(start, min(start + per_block, items)) for start in range(0, items, per_block)]
 
 
 def cells_per_radian(view: lb.Projection) -> float:
@@ -233,6 +319,7 @@ def no_light_buffers() -> lb.LightBuffers:
     buffers.cell_near = wp.zeros(1, dtype=float, device="cpu")
     buffers.cell_clear = wp.zeros(1, dtype=wp.uint8, device="cpu")
     buffers.triangle_clear = wp.zeros(1, dtype=wp.uint8, device="cpu")
+    buffers.region_grids, buffers.region_clear = _no_regions()
     buffers.triangles = 0
     buffers.resolution = 1
     return buffers

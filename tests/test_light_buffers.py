@@ -13,8 +13,9 @@ import warp as wp
 import pbrwarp as pw
 from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.lights import light_sampler
-from pbrwarp.kernels.light_buffer import (CLEAR, INTERIOR_CLEAR, INTERIOR_SHRINKS, UNDECIDED, LightBuffers,
-                                          light_buffer_occlusion, ray_leaves_clear, solid_separated, swept_solid)
+from pbrwarp.kernels.light_buffer import (CLEAR, INTERIOR_CLEAR, INTERIOR_SHRINKS, MAX_REGION_TRIANGLES, REGION_SLACK,
+                                          REGIONS_CLEAR, UNDECIDED, LightBuffers, light_buffer_occlusion,
+                                          ray_leaves_clear, solid_separated, swept_solid)
 from pbrwarp.kernels.robust import RAY_FAR, SHADOW_RAY_SHORTENING, offset_ray_origin, triangle_hit_error
 from pbrwarp.kernels.scene_data import SceneData
 from pbrwarp.light_buffers import build, no_light_buffers
@@ -107,12 +108,15 @@ LIGHTS = {
 
 def assert_same_shadows_as_the_bvh(scene, cam, size, monkeypatch):
     """The image with light buffers (and the shadow cache) equals, but for <= 0.1% of pixels, the
-    one whose shadow rays all go through Warp's BVH."""
+    one whose shadow rays all go through Warp's BVH: in the first frame, and in the second, which
+    reuses the buffers with their interiors and regions marked."""
     with_buffers = render_checked(scene, cam, size=size)
+    reused = render_checked(scene, cam, size=size)
     monkeypatch.setattr(sys.modules["pbrwarp.render"], "build_light_buffers", lambda *args: no_light_buffers())
     bvh_only = render_checked(scene, cam, size=size)
-    differs = ~np.all(np.isclose(with_buffers.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
-    assert differs.mean() <= 1e-3
+    for frame in (with_buffers, reused):
+        differs = ~np.all(np.isclose(frame.rgb, bvh_only.rgb, rtol=1e-6, atol=1e-30), axis=-1)
+        assert differs.mean() <= 1e-3
 
 
 def moved(light, offset):
@@ -152,12 +156,14 @@ def test_light_buffer_verdicts_are_the_bvhs(light, mesh, offset):
     assert (verdict[decided] != bvh[decided]).sum() <= 1e-4 * len(verdict)
 
 
-def clear_marks(mesh, light):
-    """(uploaded scene, light buffers, per triangle its mark for the light) of ``mesh`` on the floor,
-    once the buffers were reused (which marks interiors)."""
+def clear_marks(mesh, light, offset=0.0):
+    """(uploaded scene, light buffers, per triangle its mark for the light) of ``mesh`` on the floor
+    (all moved by ``offset`` times (1, 0.5, -1)), once the buffers were reused (which marks
+    interiors and regions)."""
     if mesh == "bunny" and not ASSETS.exists():
         pytest.skip("shared/assets is not beside the repository")
-    scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), LIGHTS[light])
+    shift = np.array([offset, 0.5 * offset, -offset])
+    scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), moved(LIGHTS[light], shift), shift)
     gpu = upload(scene)
     buffers = build(scene, gpu)
     assert build(scene, gpu) is buffers
@@ -198,7 +204,7 @@ def test_rays_from_a_clear_interior_are_never_shadowed(light, mesh):
     anywhere in it, its corners and edges included; rays from outside it are queried. The noisy
     bunny's lit side, whose neighbours rise in front of each other's planes, is mostly marked so."""
     gpu, buffers, marks = clear_marks(mesh, light)
-    interior = np.flatnonzero(marks >= int(INTERIOR_CLEAR))
+    interior = np.flatnonzero((marks >= int(INTERIOR_CLEAR)) & (marks < int(REGIONS_CLEAR)))
     if mesh == "bunny" and light in ("point", "directional"):
         assert len(interior) >= 0.2 * buffers.triangles
     if len(interior) == 0:
@@ -220,13 +226,91 @@ def test_rays_from_a_clear_interior_are_never_shadowed(light, mesh):
     # float32 barycentrics of the shrunk triangle's boundary may round just below the threshold
     assert skipped[reached == 1].mean() >= 0.9
     assert np.all(bvh[(reached == 1) & (skipped == 1)] == 0)
-    # just outside it: queried
+    # just outside it (outside the triangle for the first level, the whole of it): queried
     outside = inside.copy()
-    outside[:, 0] = 0.5 * least
-    outside[:, 1:] *= ((1.0 - outside[:, 0]) / outside[:, 1:].sum(axis=1))[:, None]
+    outside[:, 0] = np.where(least > 0.0, 0.5 * least, -1e-3)
+    rest = outside[:, 1:].sum(axis=1, keepdims=True)
+    shares = np.divide(outside[:, 1:], rest, out=np.full_like(outside[:, 1:], 0.5), where=rest > 0.0)
+    outside[:, 1:] = shares * (1.0 - outside[:, :1])
     wp.launch(interior_rays, dim=n, inputs=[gpu.data, buffers, 0, wp.array(faces, dtype=int),
                                             wp.array(outside.astype(np.float32), dtype=wp.vec3), out])
     assert not np.any(out.numpy()[:, 0])
+
+
+def floor_faces(gpu):
+    """The floor's two triangles (scene_with_floor's largest)."""
+    corners = gpu.data.positions.numpy().astype(np.float64)[gpu.data.indices.numpy().reshape(-1, 3)]
+    areas = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    return np.argsort(areas)[-2:]
+
+
+@pytest.mark.parametrize("light", ["point", "point inside the cube of the mesh", "directional", "narrow spot",
+                                   "wide spot"])
+@pytest.mark.parametrize("mesh,offset", [("icosphere", 0.0), ("bunny", 0.0), ("icosphere", 1e4)],
+                         ids=["icosphere", "bunny", "icosphere 1e4 from the origin"])
+def test_rays_from_a_clear_region_are_never_shadowed(light, mesh, offset):
+    """A large triangle not clear of a light as a whole (the floor's two) gets a grid of regions,
+    squares of its barycentric plane, each marked clear where no triangle can block a shadow ray
+    leaving it: the BVH finds no occluder for the rays the render kernel takes as lit without a
+    query, from anywhere in the triangle, region edges and corners included; nearly every point of
+    a clear region is taken so, no point outside the triangle is, and the floor beside the mesh
+    is mostly clear."""
+    gpu, buffers, marks = clear_marks(mesh, light, offset)
+    regioned = np.flatnonzero(marks >= int(REGIONS_CLEAR))
+    floor = floor_faces(gpu)
+    grids = buffers.region_grids.numpy()
+    flags = buffers.region_clear.numpy()
+    if offset == 0.0 and light in ("point", "directional", "wide spot"):
+        assert set(floor) <= set(regioned)
+        for face in floor:
+            n, first = grids[int(marks[face]) - int(REGIONS_CLEAR)]
+            in_triangle = np.add.outer(np.arange(n), np.arange(n)).reshape(-1) < n
+            assert flags[first:first + n * n][in_triangle].mean() >= 0.6
+    if len(regioned) == 0:
+        return
+    rng = np.random.default_rng(6)
+    count = 100_000
+    faces = rng.choice(regioned, count)
+    n = grids[marks[faces] - int(REGIONS_CLEAR), 0]
+    first = grids[marks[faces] - int(REGIONS_CLEAR), 1]
+    # a random region's corners, edges and inside
+    i = (rng.random(count) * n).astype(int)
+    j = (rng.random(count) * (n - i)).astype(int)
+    corner = rng.choice([0.0, 1.0, 0.5], (count, 2))
+    inside = rng.random((count, 2))
+    uv = np.where(rng.random((count, 1)) < 0.3, corner, inside)
+    b01 = (np.column_stack([i, j]) + uv) / n[:, None]
+    total = b01.sum(axis=1, keepdims=True)
+    b01 = np.divide(b01, total, out=b01.copy(), where=total > 1.0)
+    b = np.column_stack([b01, 1.0 - b01.sum(axis=1)]).astype(np.float32)
+    clear = flags[first + i * n + j] == 1
+    out = wp.empty(count, dtype=wp.vec3i)
+    wp.launch(interior_rays, dim=count, inputs=[gpu.data, buffers, 0, wp.array(faces, dtype=int),
+                                                wp.array(b, dtype=wp.vec3), out])
+    skipped, bvh, reached = out.numpy().T
+    assert np.all(bvh[(reached == 1) & (skipped == 1)] == 0)
+    if clear.any():
+        # a point on a region's edge may be looked up in its neighbour
+        assert skipped[clear & (reached == 1)].mean() >= 0.9
+    # outside the triangle, beyond the slack: queried
+    b[:, 2] = -3.0 * float(REGION_SLACK)
+    total = b[:, :2].sum(axis=1, keepdims=True)
+    b[:, :2] = np.divide(b[:, :2], total, out=np.full_like(b[:, :2], 0.5), where=total > 0.0) * (1.0 - b[:, 2:])
+    wp.launch(interior_rays, dim=count, inputs=[gpu.data, buffers, 0, wp.array(faces, dtype=int),
+                                                wp.array(b, dtype=wp.vec3), out])
+    assert not np.any(out.numpy()[:, 0])
+
+
+def test_region_triangles_are_the_largest_up_to_the_limit(monkeypatch):
+    """With more large triangles than a light has region slots, the largest get them."""
+    import pbrwarp.light_buffers as light_buffers
+
+    monkeypatch.setattr(light_buffers, "MIN_REGION_GRID", 1)
+    gpu, buffers, marks = clear_marks("icosphere", "point")
+    regioned = np.flatnonzero(marks >= int(REGIONS_CLEAR))
+    assert len(regioned) <= int(MAX_REGION_TRIANGLES)
+    assert set(floor_faces(gpu)) <= set(regioned)
+    assert len(set(marks[regioned])) == len(regioned)  # each its own slot
 
 
 @wp.kernel
@@ -312,6 +396,7 @@ def test_interiors_are_marked_when_the_buffers_are_first_reused():
     reused = buffers.triangle_clear.numpy()
     assert np.array_equal(reused[reused < int(INTERIOR_CLEAR)], first[reused < int(INTERIOR_CLEAR)])
     assert (reused >= int(INTERIOR_CLEAR)).mean() >= 0.2
+    assert (reused >= int(REGIONS_CLEAR)).sum() == 2  # the floor's two triangles
 
 
 def test_buffers_are_reused_until_lights_or_geometry_move():
