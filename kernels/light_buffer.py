@@ -507,6 +507,18 @@ def spread_cells(buffers: LightBuffers, view: int, p0: wp.vec3, p1: wp.vec3, p2:
 
 
 @wp.func
+def clear_in_cell(buffers: LightBuffers, e: int, face: int, reach: wp.float64) -> bool:
+    """Whether triangle ``face``'s entry in cell e, looked for among the entries nearer than
+    ``reach``, is marked clear there (cell_clear): no ray leaving it through the cell meets any."""
+    for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
+        if wp.float64(buffers.cell_near[k]) > reach:
+            return False
+        if buffers.cell_faces[k] == face:
+            return buffers.cell_clear[k] != wp.uint8(0)
+    return False
+
+
+@wp.func
 def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face: int, p0: wp.vec3, p1: wp.vec3,
                               p2: wp.vec3) -> bool:
     """Whether every shadow ray leaving the triangle that picks pinhole view ``view`` lands in cells
@@ -518,13 +530,8 @@ def pinhole_triangle_is_clear(buffers: LightBuffers, view: int, cube: bool, face
         return False
     for y in range(r[1], r[3] + 1):
         for x in range(r[0], r[2] + 1):
-            e = view * buffers.resolution * buffers.resolution + y * buffers.resolution + x
-            found = bool(False)
-            for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
-                if buffers.cell_faces[k] == face:
-                    found = buffers.cell_clear[k] != wp.uint8(0)
-                    break
-            if not found:
+            if not clear_in_cell(buffers, view * buffers.resolution * buffers.resolution + y * buffers.resolution + x,
+                                 face, wp.float64(wp.inf)):
                 return False
     return True
 
@@ -677,6 +684,8 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
     for y in range(r[1], r[3] + 1):
         for x in range(r[0], r[2] + 1):
             e = view * buffers.resolution * buffers.resolution + y * buffers.resolution + x
+            if clear_in_cell(buffers, e, face, wp.float64(far)):
+                continue  # nothing listed here can block a ray leaving the triangle
             for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
                 if buffers.cell_near[k] >= far:
                     break
@@ -876,13 +885,8 @@ def cell_verdict(buffers: LightBuffers, e: int, reach: wp.float64, positions: wp
     first the ray meets, else LIT. ``only_cell``: the ray stays in this cell, so that it meets
     nothing if its origin's entry is clear here."""
     if only_cell:
-        for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
-            if wp.float64(buffers.cell_near[k]) > reach:
-                break
-            if buffers.cell_faces[k] == origin_face:
-                if buffers.cell_clear[k] != wp.uint8(0):
-                    return LIT, -1
-                break
+        if clear_in_cell(buffers, e, origin_face, reach):
+            return LIT, -1
     for k in range(buffers.cell_start[e], buffers.cell_start[e + 1]):
         if wp.float64(buffers.cell_near[k]) > reach:
             break
