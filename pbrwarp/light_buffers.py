@@ -39,11 +39,14 @@ CLEARANCE_MARGIN = 1.0e-3
 # cells across as the light sees them: smaller ones follow a shadow's outline more closely and cost
 # more to mark. A triangle not clear of a light gets a grid of regions if it has at least
 # MIN_REGION_GRID of them per side, of at most MAX_REGION_GRID (65,536 flags); a light gets at
-# most MAX_REGIONS_PER_LIGHT flags.
+# most MAX_REGIONS_PER_LIGHT flags, all lights together MAX_REGIONS (bytes of memory).
 REGION_CELLS = 16
 MIN_REGION_GRID = 4
 MAX_REGION_GRID = 256
 MAX_REGIONS_PER_LIGHT = 1 << 22
+MAX_REGIONS = 1 << 25
+# Triangles sized for regions at a time.
+REGION_SIZING_BLOCK = 1 << 18
 
 
 def launch_threads(items: int) -> int:
@@ -214,7 +217,8 @@ def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int):
     triangles = buffers.triangles
     spans = buffers.light_views.numpy()
     marks = buffers.triangle_clear.numpy()  # a view
-    corners = gpu.data.positions.numpy().astype(np.float64)[gpu.data.indices.numpy().reshape(-1, 3)]
+    positions = gpu.data.positions.numpy()
+    faces = gpu.data.indices.numpy().reshape(-1, 3)
     per_light = int(lb.MAX_REGION_TRIANGLES)
     grids = np.zeros((len(spans) * per_light, 2), dtype=np.int32)
     chosen = []  # (light, slot, face)
@@ -223,12 +227,14 @@ def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int):
         unmarked = np.flatnonzero(marks[light * triangles:(light + 1) * triangles] == int(lb.NOT_CLEAR))
         if count == 0 or len(unmarked) == 0:
             continue
-        size = region_grid_sizes(buffers, light, corners[unmarked])
+        # in blocks: a large mesh's corners in float64 would take 72 bytes a triangle at once
+        size = np.concatenate([region_grid_sizes(buffers, light, positions[faces[block]].astype(np.float64))
+                               for block in np.array_split(unmarked, -(-len(unmarked) // REGION_SIZING_BLOCK))])
         order = np.argsort(-size, kind="stable")[:per_light]
         flags = 0
         for slot, k in enumerate(order[size[order] > 0]):
             n = int(size[k])
-            if flags + n * n > MAX_REGIONS_PER_LIGHT:
+            if flags + n * n > MAX_REGIONS_PER_LIGHT or total + n * n > MAX_REGIONS:
                 break
             grids[light * per_light + slot] = (n, total)
             chosen.append((light, slot, int(unmarked[k])))

@@ -313,6 +313,15 @@ def test_region_triangles_are_the_largest_up_to_the_limit(monkeypatch):
     assert len(set(marks[regioned])) == len(regioned)  # each its own slot
 
 
+def test_regions_stay_within_their_memory_budget(monkeypatch):
+    """Past MAX_REGIONS flags no triangle gets regions (its rays are queried as before)."""
+    import pbrwarp.light_buffers as light_buffers
+
+    monkeypatch.setattr(light_buffers, "MAX_REGIONS", 0)
+    gpu, buffers, marks = clear_marks("icosphere", "point")
+    assert marks.max() < int(REGIONS_CLEAR)
+
+
 @wp.kernel
 def separations(solids: wp.array(dtype=wp.vec3d, ndim=2), triangles: wp.array(dtype=wp.vec3d, ndim=2),
                 margin: wp.float64, out: wp.array(dtype=int)):
