@@ -133,7 +133,8 @@ class LightBuffers:
     # per light and triangle (light * triangles + face): CLEAR where every shadow ray leaving the
     # triangle lands in cells where it is clear (pinhole views only), INTERIOR_CLEAR + k where
     # every ray leaving its interior (shrunk by INTERIOR_SHRINKS[k]) meets nothing, so that those
-    # need no query, else NOT_CLEAR
+    # need no query, REGIONS_CLEAR + t where its regions are marked (region_grids' t-th entry of
+    # the light), else NOT_CLEAR
     triangle_clear: wp.array(dtype=wp.uint8)
     # per light and region triangle (light * MAX_REGION_TRIANGLES + t): (grid size n, first entry of
     # region_clear); region (i, j) is entry first + i n + j, 1 where every ray leaving it is clear
@@ -785,7 +786,7 @@ def mark_clear_regions(buffers: LightBuffers, light: int, positions: wp.array(dt
     p0 = to_double(positions[c[0]])
     p1 = to_double(positions[c[1]])
     p2 = to_double(positions[c[2]])
-    scale = wp.max(largest_coordinate(p0), wp.max(largest_coordinate(p1), largest_coordinate(p2)))
+    scale = origin_magnitude(p0, p1, p2, wp.float64(0.0))
     n = grid[0]
     grow = wp.float64(3.0 * REGION_SLACK)
     start = first + wp.tid() * ITEMS_PER_THREAD
@@ -876,7 +877,7 @@ def segment_meets_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array
     return hit and t < max_t
 
 
-# inlined: a call would copy the light buffers' struct (~0.5 KB) per cell tested
+# inlined: a call would copy the light buffers' struct (~0.6 KB) per cell tested
 @wp.func(inline=True)
 def cell_verdict(buffers: LightBuffers, e: int, reach: wp.float64, positions: wp.array(dtype=wp.vec3),
                  indices: wp.array(dtype=wp.int32), origin: wp.vec3, direction: wp.vec3, max_t: float,
