@@ -182,7 +182,8 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
 def mark_interiors(buffers: lb.LightBuffers, gpu, threads: int):
     """Mark the interiors of ``buffers``' triangles not clear of their lights as a whole
     (kernels/light_buffer.mark_clear_interiors), then the regions of the large ones left
-    (mark_clear_regions), every light's; build does it on the first reuse."""
+    (mark_clear_regions), every light's; build does it on the first reuse. Buffers already marked
+    are left as they are."""
     _mark_triangles(lb.mark_clear_interiors, buffers, gpu, threads, parallel_views=True)
     _mark_regions(buffers, gpu, threads)
 
@@ -213,10 +214,13 @@ def region_grid_sizes(buffers: lb.LightBuffers, light: int, corners: np.ndarray)
 
 def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int):
     """Give the largest triangles not otherwise marked for a light (at most MAX_REGION_TRIANGLES)
-    grids of regions, mark which are clear, then point the triangles' marks at their grids."""
+    grids of regions, mark which are clear, then point the triangles' marks at their grids;
+    nothing where marks point at grids already (new grids would replace the ones they index)."""
     triangles = buffers.triangles
     spans = buffers.light_views.numpy()
     marks = buffers.triangle_clear.numpy()  # a view
+    if np.any(marks >= int(lb.REGIONS_CLEAR)):
+        return
     positions = gpu.data.positions.numpy()
     faces = gpu.data.indices.numpy().reshape(-1, 3)
     per_light = int(lb.MAX_REGION_TRIANGLES)

@@ -408,6 +408,25 @@ def test_interiors_are_marked_when_the_buffers_are_first_reused():
     assert (reused >= int(REGIONS_CLEAR)).sum() == 2  # the floor's two triangles
 
 
+def test_marking_interiors_again_changes_nothing(monkeypatch):
+    """mark_interiors on buffers already marked keeps every mark and the region grids they point
+    at (with regions for every triangle left unmarked, a second marking would find new ones)."""
+    import pbrwarp.light_buffers as light_buffers
+
+    monkeypatch.setattr(light_buffers, "MIN_REGION_GRID", 1)
+    scene = scene_with_floor(icosphere(3), LIGHTS["point"])
+    gpu = upload(scene)
+    build(scene, gpu)
+    buffers = build(scene, gpu)  # reused: interiors and regions marked
+    marks = buffers.triangle_clear.numpy().copy()
+    grids, flags = buffers.region_grids.numpy().copy(), buffers.region_clear.numpy().copy()
+    assert marks.max() >= int(REGIONS_CLEAR)
+    light_buffers.mark_interiors(buffers, gpu, 2)
+    assert np.array_equal(buffers.triangle_clear.numpy(), marks)
+    assert np.array_equal(buffers.region_grids.numpy(), grids)
+    assert np.array_equal(buffers.region_clear.numpy(), flags)
+
+
 def test_buffers_are_reused_until_lights_or_geometry_move():
     scene = scene_with_floor(icosphere(3), pw.PointLight(position=(2.0, 3.0, 2.0), intensity=40.0))
     first = build(scene, upload(scene))
