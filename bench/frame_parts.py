@@ -73,7 +73,7 @@ def variants(scene, camera, size, threads):
         # the kept buffers' interiors and regions marked again from the whole triangles' marks
         buffers = light_buffers.build(scene, gpu, threads)
         buffers.triangle_clear.assign(dropped(buffers.triangle_clear.numpy(), INTERIOR_CLEAR))
-        light_buffers.mark_interiors(buffers, gpu, threads)
+        light_buffers.mark_interiors(buffers, gpu, threads, light_buffers.front_only_faces(scene, gpu))
 
     return dict(zip(PARTS, (
         lambda: visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads, out=out,

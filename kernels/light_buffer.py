@@ -359,16 +359,37 @@ def light_plane(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d) -> L
     return plane
 
 
+@wp.func
+def no_shadow_rays_leave(front_only: wp.array(dtype=wp.uint8), face: int, proj: Projection, p0: wp.vec3,
+                         p1: wp.vec3, p2: wp.vec3) -> bool:
+    """Whether no shadow ray towards the light of view ``proj`` leaves triangle ``face``: it is
+    shaded from its front only (front_only[face] set: pbrwarp.gpu_scene.back_faces_unseen) and the
+    light lies behind its front, the side its winding's normal points to (surface_hit's). Marks
+    are not worth making for it; a ray that rounding would still send from it is queried."""
+    if face >= front_only.shape[0]:
+        return False
+    if front_only[face] == wp.uint8(0):
+        return False
+    d0 = to_double(p0)
+    return wp.dot(wp.cross(to_double(p1) - d0, to_double(p2) - d0), towards_light(proj, d0)) < wp.float64(0.0)
+
+
 @wp.kernel
 def light_planes(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), proj: Projection,
-                 first: int, last: int, planes: wp.array(dtype=LightPlane)):
+                 first: int, last: int, front_only: wp.array(dtype=wp.uint8), planes: wp.array(dtype=LightPlane)):
     """The LightPlane of triangles first...last - 1 for the light of view ``proj``: computed once
-    per triangle, where mark_clear_entries would redo it in every cell listing the triangle."""
+    per triangle, where mark_clear_entries would redo it in every cell listing the triangle; light
+    side 0 (never clear) where no shadow ray leaves the triangle (no_shadow_rays_leave)."""
     start = first + wp.tid() * ITEMS_PER_THREAD
     for face in range(start, wp.min(start + ITEMS_PER_THREAD, last)):
         c = triangle_corners(indices, face)
-        planes[face] = light_plane(proj, to_double(positions[c[0]]), to_double(positions[c[1]]),
-                                   to_double(positions[c[2]]))
+        p0 = positions[c[0]]
+        p1 = positions[c[1]]
+        p2 = positions[c[2]]
+        plane = light_plane(proj, to_double(p0), to_double(p1), to_double(p2))
+        if no_shadow_rays_leave(front_only, face, proj, p0, p1, p2):
+            plane.light_side = wp.float64(0.0)
+        planes[face] = plane
 
 
 @wp.func
@@ -718,15 +739,17 @@ def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int
 
 @wp.kernel
 def mark_clear_triangles(buffers: LightBuffers, light: int, positions: wp.array(dtype=wp.vec3),
-                         indices: wp.array(dtype=wp.int32), first: int, end: int):
+                         indices: wp.array(dtype=wp.int32), front_only: wp.array(dtype=wp.uint8), first: int,
+                         end: int):
     """Per triangle of [first, end), whether every shadow ray leaving it towards ``light`` (pinhole
     views) is lit without a query: it is clear wherever its rays may land, in every view
-    (buffers.triangle_clear: CLEAR, else NOT_CLEAR)."""
+    (buffers.triangle_clear: CLEAR, else NOT_CLEAR, unmarked where no_shadow_rays_leave)."""
     start = first + wp.tid() * ITEMS_PER_THREAD
     span = buffers.light_views[light]
     for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
         c = triangle_corners(indices, face)
-        clear = bool(True)
+        clear = not no_shadow_rays_leave(front_only, face, buffers.views[span[0]], positions[c[0]], positions[c[1]],
+                                         positions[c[2]])
         for v in range(span[0], span[0] + span[1]):
             if clear:
                 clear = pinhole_triangle_is_clear(buffers, v, span[1] == CUBE_FACES, face, positions[c[0]],
@@ -736,15 +759,17 @@ def mark_clear_triangles(buffers: LightBuffers, light: int, positions: wp.array(
 
 @wp.kernel
 def mark_clear_interiors(buffers: LightBuffers, light: int, positions: wp.array(dtype=wp.vec3),
-                         indices: wp.array(dtype=wp.int32), first: int, end: int):
+                         indices: wp.array(dtype=wp.int32), front_only: wp.array(dtype=wp.uint8), first: int,
+                         end: int):
     """Per triangle of [first, end) not clear of ``light``: INTERIOR_CLEAR + k where
     no triangle can block a shadow ray leaving its interior shrunk by INTERIOR_SHRINKS[k], the
-    first that works, in any view (buffers.triangle_clear)."""
+    first that works, in any view (buffers.triangle_clear); none where no_shadow_rays_leave."""
     start = first + wp.tid() * ITEMS_PER_THREAD
     span = buffers.light_views[light]
     for face in range(start, wp.min(start + ITEMS_PER_THREAD, end)):
-        if buffers.triangle_clear[light * buffers.triangles + face] == NOT_CLEAR:
-            c = triangle_corners(indices, face)
+        c = triangle_corners(indices, face)
+        if buffers.triangle_clear[light * buffers.triangles + face] == NOT_CLEAR and not no_shadow_rays_leave(
+                front_only, face, buffers.views[span[0]], positions[c[0]], positions[c[1]], positions[c[2]]):
             level = int(0)
             for v in range(span[0], span[0] + span[1]):
                 level = interior_clear_level(buffers, v, span[1] == CUBE_FACES, face, positions, indices,

@@ -294,27 +294,40 @@ def _bounds(prim) -> tuple[np.ndarray, np.ndarray]:
     return cached
 
 
+def back_faces_unseen(prim, point=None) -> bool:
+    """Whether no surface a ray from ``point`` (None: from infinitely far away) shows is a back
+    face of ``prim``: its material is single-sided (the render kernel passes through its back
+    faces), or it is an opaque closed volume and the point lies outside its bounding box (a ray
+    from outside enters it through a front face first)."""
+    if not prim.material.double_sided:
+        return True
+    if prim.material.alpha_mode == "MASK":
+        return False
+    if point is not None:
+        lo, hi = _bounds(prim)
+        if not (np.any(point < lo) or np.any(point > hi)):
+            return False
+    return _is_closed_volume(prim)
+
+
+def face_flags(gpu: GpuScene, kind: str, per_primitive: list[bool]) -> wp.array:
+    """Per-primitive flags spread over the triangles (a uint8 wp.array, one entry per triangle),
+    kept on the uploaded geometry, the last set of each ``kind`` ("culling", "front lit", ...)."""
+    geometry = gpu._keep[0]
+    cache = geometry.__dict__.setdefault("_face_flags", {})
+    key = tuple(bool(f) for f in per_primitive)
+    if cache.get(kind, (None,))[0] != key:
+        per_mesh = np.array(key, dtype=np.uint8)
+        cache[kind] = (key, wp.array(per_mesh[geometry.face_primitive.numpy()], dtype=wp.uint8, device="cpu"))
+    return cache[kind][1]
+
+
 def back_face_culling(scene, gpu: GpuScene, eye) -> tuple[wp.array | None, int]:
     """(per-triangle uint8 flags for raster.visibility_buffer's ``cull_back_faces``, or None,
-    and how many meshes are culled). A mesh's back faces are never the surface a camera ray
-    shows when its material is single-sided (the render kernel passes through them) or when it
-    is a closed volume and the eye lies outside its bounding box (a ray from outside enters it
-    through a front face first), so they need not be drawn."""
+    and how many meshes are culled): a mesh's back faces need not be drawn where the eye sees
+    none of them (back_faces_unseen)."""
     eye = np.asarray(eye, dtype=np.float64)
-    flags = []
-    for prim in scene.primitives:
-        culled = not prim.material.double_sided
-        if not culled and prim.material.alpha_mode != "MASK":
-            lo, hi = _bounds(prim)
-            culled = bool(np.any(eye < lo) or np.any(eye > hi)) and _is_closed_volume(prim)
-        flags.append(culled)
+    flags = [back_faces_unseen(prim, eye) for prim in scene.primitives]
     if not any(flags):
         return None, 0
-    geometry = gpu._keep[0]
-    cache = geometry.__dict__.setdefault("_culling", {})
-    key = tuple(flags)
-    if key not in cache:
-        cache.clear()
-        per_mesh = np.array(flags, dtype=np.uint8)
-        cache[key] = wp.array(per_mesh[geometry.face_primitive.numpy()], dtype=wp.uint8, device="cpu")
-    return cache[key], sum(flags)
+    return face_flags(gpu, "culling", flags), sum(flags)

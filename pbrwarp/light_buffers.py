@@ -16,6 +16,7 @@ import warp as wp
 
 from . import huge_pages
 from .errors import InputError
+from .gpu_scene import back_faces_unseen, face_flags
 from .parallel import run_all, thread_count
 from .raster import projection
 from .shadow_maps import light_views, light_geometry
@@ -54,20 +55,36 @@ def launch_threads(items: int) -> int:
     return -(-items // int(lb.ITEMS_PER_THREAD))
 
 
+def front_only_faces(scene, gpu) -> list[wp.array]:
+    """Per light of ``scene``, per triangle (uint8): 1 where the triangle is shaded from its front
+    only, as the light sees the scene: its mesh's back faces are never seen from the light's
+    position (gpu_scene.back_faces_unseen; directional lights from infinitely far away). There a
+    triangle facing away from the light sends no shadow ray towards it, and its marks are not worth
+    making (kernels/light_buffer.no_shadow_rays_leave). A camera that does see such back faces (one
+    inside a closed mesh that the light is outside of) gets their shadows by queries."""
+    out = []
+    for light in scene.lights:
+        point = np.asarray(light.position, dtype=np.float64) if hasattr(light, "position") else None
+        out.append(face_flags(gpu, f"front only, light {len(out)}",
+                              [back_faces_unseen(prim, point) for prim in scene.primitives]))
+    return out
+
+
 def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     """The light buffers of every light of ``scene`` (uploaded as ``gpu``), cached on the scene.
 
     Triangle interiors are marked clear (kernels/light_buffer.mark_clear_interiors) when the
     buffers are first reused, for a second frame: the marks cost about as much as the rest of the
     build and pay off only over frames whose lights and geometry stay put, so a light moving every
-    frame never pays for them."""
+    frame never pays for them. No triangle is marked where no shadow ray leaves it
+    (front_only_faces)."""
     key = tuple(light_geometry(light) for light in scene.lights)
     cached = scene.__dict__.get("_light_buffers")
     if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
-        positions, key, buffers, interiors_marked = cached
+        positions, key, buffers, front_only, interiors_marked = cached
         if not interiors_marked:
-            mark_interiors(buffers, gpu, thread_count(threads))
-            scene.__dict__["_light_buffers"] = (positions, key, buffers, True)
+            mark_interiors(buffers, gpu, thread_count(threads), front_only)
+            scene.__dict__["_light_buffers"] = (positions, key, buffers, front_only, True)
         return buffers
     threads = thread_count(threads)
     for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.light_planes, lb.finish_cells,
@@ -75,6 +92,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
         load_for_cpu(kernel)
     positions, indices = gpu.data.positions, gpu.data.indices
     triangles = len(indices) // 3
+    front_only = front_only_faces(scene, gpu)
     lo, hi = scene.bounds()
     center = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
@@ -140,14 +158,14 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     blocks = WORK_BLOCKS_PER_THREAD * threads
     rows = -(-RESOLUTION // blocks)
     planes = wp.empty(max(triangles, 1), dtype=lb.LightPlane, device="cpu")
-    for first, n in spans:
+    for light, (first, n) in enumerate(spans):
         if n == 0:
             continue
 
-        def plane(block, view=views[first]):
+        def plane(block, view=views[first], light_front_only=front_only[light]):
             start, end = block
             wp.launch(lb.light_planes, dim=launch_threads(end - start), device="cpu",
-                      inputs=[positions, indices, view, start, end, planes])
+                      inputs=[positions, indices, view, start, end, light_front_only, planes])
 
         def finish(job):
             v, row = job
@@ -174,45 +192,54 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     buffers.region_grids, buffers.region_clear = _no_regions()
     buffers.triangles = triangles
     buffers.resolution = RESOLUTION
-    _mark_triangles(lb.mark_clear_triangles, buffers, gpu, threads, parallel_views=False)
-    scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers, False)
+    _mark_triangles(lb.mark_clear_triangles, buffers, gpu, threads, front_only, parallel_views=False)
+    scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers, front_only, False)
     return buffers
 
 
-def mark_interiors(buffers: lb.LightBuffers, gpu, threads: int):
+def mark_interiors(buffers: lb.LightBuffers, gpu, threads: int, front_only: list[wp.array]):
     """Mark the interiors of ``buffers``' triangles not clear of their lights as a whole
     (kernels/light_buffer.mark_clear_interiors), then the regions of the large ones left
-    (mark_clear_regions), every light's; build does it on the first reuse. Buffers already marked
-    are left as they are."""
-    _mark_triangles(lb.mark_clear_interiors, buffers, gpu, threads, parallel_views=True)
-    _mark_regions(buffers, gpu, threads)
+    (mark_clear_regions), every light's, but for the triangles no shadow ray leaves (per light,
+    ``front_only``: front_only_faces of the scene); build does it on the first reuse. Buffers
+    already marked are left as they are."""
+    _mark_triangles(lb.mark_clear_interiors, buffers, gpu, threads, front_only, parallel_views=True)
+    _mark_regions(buffers, gpu, threads, front_only)
 
 
 def _no_regions():
     return wp.zeros(1, dtype=wp.vec2i, device="cpu"), wp.zeros(1, dtype=wp.uint8, device="cpu")
 
 
-def region_grid_sizes(buffers: lb.LightBuffers, light: int, corners: np.ndarray) -> np.ndarray:
+def region_grid_sizes(buffers: lb.LightBuffers, light: int, corners: np.ndarray,
+                      front_only: np.ndarray | None = None) -> np.ndarray:
     """Per triangle (``corners``: (n, 3, 3) float64), the side of a grid of regions REGION_CELLS
-    cells across as ``light``'s views see them (0 where fewer than MIN_REGION_GRID): the longest
-    edge over the nearest the triangle may come to the light (no nearer than its clearance), in
-    cells per radian, or in a parallel view in cells per unit."""
+    cells across as ``light``'s views see them (0 where fewer than MIN_REGION_GRID, and where
+    ``front_only`` (bool per triangle, as front_only_faces) is set and the light lies behind the
+    triangle's front: no shadow ray leaves it): the longest edge over the nearest the triangle may
+    come to the light (no nearer than its clearance), in cells per radian, or in a parallel view
+    in cells per unit."""
     first, count = buffers.light_views.numpy()[light]
     view = buffers.views.numpy()[first]
     longest = np.max(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2), axis=1)
     if view["orthographic"]:
         rows = np.asarray(view["to_camera"], dtype=np.float64).reshape(3, 3)
+        towards_light = np.broadcast_to(-rows[2], (len(corners), 3))
         across = longest * max(view["half_width"] * np.linalg.norm(rows[0]), view["half_height"] * np.linalg.norm(rows[1]))
     else:
+        towards_light = np.asarray(view["eye"], dtype=np.float64) - corners[:, 0]
         to_corners = np.min(np.linalg.norm(corners - np.asarray(view["eye"], dtype=np.float64), axis=2), axis=1)
         nearest = np.maximum(to_corners - longest, float(buffers.clearance.numpy()[light]))
         per_radian = float(buffers.view_cells_per_radian.numpy()[first:first + count].max())
         across = np.divide(longest, nearest, out=np.full_like(longest, np.inf), where=nearest > 0) * per_radian
     size = np.minimum(np.ceil(across / REGION_CELLS), MAX_REGION_GRID)
+    if front_only is not None:
+        front = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        size[front_only & (np.einsum("ij,ij->i", front, towards_light) < 0.0)] = 0
     return np.where(size >= MIN_REGION_GRID, size, 0).astype(np.int64)
 
 
-def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int):
+def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int, front_only: list[wp.array]):
     """Give the largest triangles not otherwise marked for a light (at most MAX_REGION_TRIANGLES)
     grids of regions, mark which are clear, then point the triangles' marks at their grids;
     nothing where marks point at grids already (new grids would replace the ones they index)."""
@@ -232,7 +259,9 @@ def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int):
         if count == 0 or len(unmarked) == 0:
             continue
         # in blocks: a large mesh's corners in float64 would take 72 bytes a triangle at once
-        size = np.concatenate([region_grid_sizes(buffers, light, positions[faces[block]].astype(np.float64))
+        light_front_only = front_only[light].numpy() != 0
+        size = np.concatenate([region_grid_sizes(buffers, light, positions[faces[block]].astype(np.float64),
+                                                 light_front_only[block])
                                for block in np.array_split(unmarked, -(-len(unmarked) // REGION_SIZING_BLOCK))])
         order = np.argsort(-size, kind="stable")[:per_light]
         flags = 0
@@ -267,10 +296,11 @@ def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int):
         marks[light * triangles + face] = int(lb.REGIONS_CLEAR) + slot
 
 
-def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int, parallel_views: bool):
+def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int, front_only: list[wp.array],
+                    parallel_views: bool):
     """``kernel`` (mark_clear_triangles or mark_clear_interiors) over every triangle and light with
     buffers (those of parallel views, directional lights', too if ``parallel_views``), in blocks
-    spread over the threads."""
+    spread over the threads; ``front_only`` per light, as front_only_faces."""
     views = buffers.views.numpy()
     spans = buffers.light_views.numpy()
     lights = [k for k, (first, n) in enumerate(spans) if n and (parallel_views or not views[first]["orthographic"])]
@@ -278,7 +308,7 @@ def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int, paralle
     def mark(job):
         light, (start, end) = job
         wp.launch(kernel, dim=launch_threads(end - start), device="cpu",
-                  inputs=[buffers, light, gpu.data.positions, gpu.data.indices, start, end])
+                  inputs=[buffers, light, gpu.data.positions, gpu.data.indices, front_only[light], start, end])
 
     run_all(mark, [(light, block) for light in lights for block in _work_blocks(buffers.triangles, threads)],
             threads)

@@ -421,10 +421,78 @@ def test_marking_interiors_again_changes_nothing(monkeypatch):
     marks = buffers.triangle_clear.numpy().copy()
     grids, flags = buffers.region_grids.numpy().copy(), buffers.region_clear.numpy().copy()
     assert marks.max() >= int(REGIONS_CLEAR)
-    light_buffers.mark_interiors(buffers, gpu, 2)
+    light_buffers.mark_interiors(buffers, gpu, 2, light_buffers.front_only_faces(scene, gpu))
     assert np.array_equal(buffers.triangle_clear.numpy(), marks)
     assert np.array_equal(buffers.region_grids.numpy(), grids)
     assert np.array_equal(buffers.region_clear.numpy(), flags)
+
+
+def test_only_lights_outside_a_closed_mesh_leave_its_back_faces_unlit():
+    """front_only_faces: a closed double-sided sphere's back faces are never seen from a light
+    outside its bounding box (point, or directional); from one inside they may be; a single-sided
+    mesh's never are; an open double-sided one's always may be."""
+    from pbrwarp.light_buffers import front_only_faces
+
+    scene = pw.Scene()
+    scene.add_mesh(icosphere(2), pw.Material())
+    scene.add_mesh(icosphere(1).apply_translation((3.0, 0.0, 0.0)), pw.Material(double_sided=False))
+    scene.add_mesh(trimesh.Trimesh([[-1, -2, -1], [1, -2, -1], [1, -2, 1]], [[0, 2, 1]]), pw.Material())
+    for light in (pw.PointLight(position=(0.0, 0.0, 4.0)), pw.PointLight(position=(0.2, 0.1, 0.0)),
+                  pw.DirectionalLight(direction=(0.0, -1.0, 0.0))):
+        scene.add_light(light)
+    gpu = upload(scene)
+    primitive = gpu.data.face_material.numpy()
+    expected = {0: [True, True, False], 1: [False, True, False], 2: [True, True, False]}
+    for light, flags in enumerate(front_only_faces(scene, gpu)):
+        assert np.array_equal(flags.numpy(), np.array(expected[light], np.uint8)[primitive])
+
+
+@pytest.mark.parametrize("material", [pw.Material(), pw.Material(double_sided=False)], ids=["closed", "single-sided"])
+def test_no_marks_where_no_shadow_ray_leaves(material, monkeypatch):
+    """A sphere whose back faces are never seen from the light (closed, or single-sided) sends no
+    shadow ray from the triangles facing away from it: they get no marks, those facing it are
+    still marked clear, and the shadows are the BVH's, also seen from inside the sphere, where a
+    double-sided sphere's back faces are shaded and their rays queried."""
+    scene = pw.Scene()
+    scene.add_mesh(icosphere(3), material)
+    scene.add_mesh(trimesh.Trimesh([[-4, -1, -4], [4, -1, -4], [4, -1, 4], [-4, -1, 4]], [[0, 2, 1], [0, 3, 2]]),
+                   pw.Material())
+    scene.add_light(LIGHTS["point"])
+    gpu = upload(scene)
+    build(scene, gpu)
+    buffers = build(scene, gpu)  # reused: interiors and regions marked
+    marks = buffers.triangle_clear.numpy()
+    p = gpu.data.positions.numpy().astype(np.float64)[gpu.data.indices.numpy().reshape(-1, 3)]
+    facing = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]),
+                       np.asarray(LIGHTS["point"].position) - p[:, 0])
+    sphere = gpu.data.face_material.numpy() == 0
+    assert np.all(marks[sphere & (facing < 0.0)] == 0)
+    assert np.mean(marks[sphere & (facing > 0.0)] == int(CLEAR)) >= 0.5
+    assert_same_shadows_as_the_bvh(scene, pw.Camera.look_at(eye=(0.0, 0.8, 3.2), target=(0.0, -0.2, 0.0)), (48, 48),
+                                   monkeypatch)
+    monkeypatch.undo()
+    assert_same_shadows_as_the_bvh(scene, pw.Camera.look_at(eye=(0.0, 0.2, 0.3), target=(0.5, 0.5, -1.0)), (48, 48),
+                                   monkeypatch)
+
+
+@pytest.mark.parametrize("double_sided", [True, False])
+def test_a_floor_seen_only_from_below_the_light_gets_no_marks(double_sided, monkeypatch):
+    """A floor wound to face down, under a light above: double-sided, its top is lit and marked
+    (clear whole or by regions); single-sided, its top is never shaded, and it gets no marks."""
+    scene = pw.Scene()
+    scene.add_mesh(icosphere(2), pw.Material())
+    scene.add_mesh(trimesh.Trimesh([[-4, -1, -4], [4, -1, -4], [4, -1, 4], [-4, -1, 4]], [[0, 1, 2], [0, 2, 3]]),
+                   pw.Material(double_sided=double_sided))
+    scene.add_light(LIGHTS["point"])
+    gpu = upload(scene)
+    build(scene, gpu)
+    floor = build(scene, gpu).triangle_clear.numpy()[gpu.data.face_material.numpy() == 1]
+    if double_sided:
+        assert np.all(floor != 0)
+    else:
+        assert np.all(floor == 0)
+    assert_same_shadows_as_the_bvh(scene, pw.Camera.look_at(eye=(0.0, -2.5, 3.2), target=(0.0, -0.5, 0.0)), (48, 48),
+                                   monkeypatch)
 
 
 def test_buffers_are_reused_until_lights_or_geometry_move():
