@@ -219,19 +219,17 @@ def region_grid_sizes(buffers: lb.LightBuffers, light: int, corners: np.ndarray,
     triangle's front: no shadow ray leaves it): the longest edge over the nearest the triangle may
     come to the light (no nearer than its clearance), in cells per radian, or in a parallel view
     in cells per unit."""
-    first, count = buffers.light_views.numpy()[light]
-    view = buffers.views.numpy()[first]
+    view, scale = _cell_scale(buffers, light)
     longest = np.max(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2), axis=1)
     if view["orthographic"]:
-        rows = np.asarray(view["to_camera"], dtype=np.float64).reshape(3, 3)
-        towards_light = np.broadcast_to(-rows[2], (len(corners), 3))
-        across = longest * max(view["half_width"] * np.linalg.norm(rows[0]), view["half_height"] * np.linalg.norm(rows[1]))
+        towards_light = np.broadcast_to(-np.asarray(view["to_camera"], dtype=np.float64).reshape(3, 3)[2],
+                                        (len(corners), 3))
+        across = longest * scale
     else:
         towards_light = np.asarray(view["eye"], dtype=np.float64) - corners[:, 0]
         to_corners = np.min(np.linalg.norm(corners - np.asarray(view["eye"], dtype=np.float64), axis=2), axis=1)
         nearest = np.maximum(to_corners - longest, float(buffers.clearance.numpy()[light]))
-        per_radian = float(buffers.view_cells_per_radian.numpy()[first:first + count].max())
-        across = np.divide(longest, nearest, out=np.full_like(longest, np.inf), where=nearest > 0) * per_radian
+        across = np.divide(longest, nearest, out=np.full_like(longest, np.inf), where=nearest > 0) * scale
     size = np.minimum(np.ceil(across / REGION_CELLS), MAX_REGION_GRID)
     if front_only is not None:
         front = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
@@ -254,9 +252,14 @@ def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int, front_only: list[
     grids = np.zeros((len(spans) * per_light, 2), dtype=np.int32)
     chosen = []  # (light, slot, face)
     total = 0
+    longest = _longest_edges(gpu, faces, positions)
     for light, (_, count) in enumerate(spans):
+        if count == 0:
+            continue
         unmarked = np.flatnonzero(marks[light * triangles:(light + 1) * triangles] == int(lb.NOT_CLEAR))
-        if count == 0 or len(unmarked) == 0:
+        # the float64 sizing only for triangles long enough to get regions however near the light
+        unmarked = unmarked[longest[unmarked] > _shortest_region_triangle(buffers, light)]
+        if len(unmarked) == 0:
             continue
         # in blocks: a large mesh's corners in float64 would take 72 bytes a triangle at once
         light_front_only = front_only[light].numpy() != 0
@@ -294,6 +297,42 @@ def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int, front_only: list[
     # the marks last, once the flags they point to are all written
     for light, slot, face in chosen:
         marks[light * triangles + face] = int(lb.REGIONS_CLEAR) + slot
+
+
+def _longest_edges(gpu, faces: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Per triangle, its longest edge (float32), kept on the uploaded geometry."""
+    geometry = gpu._keep[0]
+    cached = geometry.__dict__.get("_longest_edges")
+    if cached is None:
+        cached = np.empty(len(faces), dtype=np.float32)
+        for start in range(0, len(faces), REGION_SIZING_BLOCK):
+            corners = positions[faces[start:start + REGION_SIZING_BLOCK]]
+            cached[start:start + len(corners)] = np.max(
+                np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2), axis=1, initial=0.0)
+        geometry.__dict__["_longest_edges"] = cached
+    return cached
+
+
+def _shortest_region_triangle(buffers: lb.LightBuffers, light: int) -> float:
+    """A longest edge below which region_grid_sizes gives a triangle no regions for ``light``
+    wherever it lies: (MIN_REGION_GRID - 1) REGION_CELLS cells across at the light's clearance
+    (pinhole views), less 1% for the float32 edge lengths."""
+    view, scale = _cell_scale(buffers, light)
+    cells = (MIN_REGION_GRID - 1) * REGION_CELLS * 0.99
+    if view["orthographic"]:
+        return cells / scale
+    return cells * float(buffers.clearance.numpy()[light]) / scale
+
+
+def _cell_scale(buffers: lb.LightBuffers, light: int):
+    """(the first view of ``light`` as a numpy record, how many cells its views cross per unit of
+    length (a parallel view) or at most per radian (pinhole views))."""
+    first, count = buffers.light_views.numpy()[light]
+    view = buffers.views.numpy()[first]
+    if view["orthographic"]:
+        rows = np.asarray(view["to_camera"], dtype=np.float64).reshape(3, 3)
+        return view, max(view["half_width"] * np.linalg.norm(rows[0]), view["half_height"] * np.linalg.norm(rows[1]))
+    return view, float(buffers.view_cells_per_radian.numpy()[first:first + count].max())
 
 
 def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int, front_only: list[wp.array],

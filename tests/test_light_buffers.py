@@ -313,6 +313,34 @@ def test_region_triangles_are_the_largest_up_to_the_limit(monkeypatch):
     assert len(set(marks[regioned])) == len(regioned)  # each its own slot
 
 
+@pytest.mark.parametrize("light", LIGHTS)
+def test_triangles_too_short_for_regions_are_not_sized(light):
+    """The float64 sizing is skipped for triangles shorter than _shortest_region_triangle: none of
+    them would get regions (triangles of every size, near and far from the light)."""
+    import pbrwarp.light_buffers as light_buffers
+
+    rng = np.random.default_rng(5)
+    scene = scene_with_floor(icosphere(3), LIGHTS[light])
+    centres = rng.uniform(-3.0, 3.0, (400, 3))
+    scale = 10.0 ** rng.uniform(-3.0, 0.5, (400, 1, 1))
+    corners = centres[:, None, :] + scale * rng.normal(size=(400, 3, 3))
+    scene.add_mesh(trimesh.Trimesh(corners.reshape(-1, 3), np.arange(1200).reshape(-1, 3), process=False),
+                   pw.Material())
+    gpu = upload(scene)
+    buffers = build(scene, gpu)
+    if buffers.light_views.numpy()[0][1] == 0:
+        pytest.skip("no light buffers for this light")
+    faces = gpu.data.indices.numpy().reshape(-1, 3)
+    positions = gpu.data.positions.numpy()
+    size = light_buffers.region_grid_sizes(buffers, 0, positions[faces].astype(np.float64))
+    longest = light_buffers._longest_edges(gpu, faces, positions)
+    shortest = light_buffers._shortest_region_triangle(buffers, 0)
+    assert np.all(longest[size > 0] > shortest)
+    assert np.sum(size > 0) > 0
+    if buffers.clearance.numpy()[0] > 0.5:  # no random triangle near the light: most are skipped
+        assert np.sum(longest > shortest) < 0.5 * len(faces)
+
+
 def test_regions_stay_within_their_memory_budget(monkeypatch):
     """Past MAX_REGIONS flags no triangle gets regions (its rays are queried as before)."""
     import pbrwarp.light_buffers as light_buffers
