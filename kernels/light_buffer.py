@@ -660,7 +660,8 @@ def shrunk_solid(proj: Projection, d0: wp.vec3d, d1: wp.vec3d, d2: wp.vec3d, lev
     return pyramid(proj.eye, s0, s1, s2)
 
 
-@wp.func
+# inlined: a call would copy the light buffers' struct (~0.6 KB) per triangle and view
+@wp.func(inline=True)
 def interior_clear_level(buffers: LightBuffers, view: int, cube: bool, face: int,
                          positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), p0: wp.vec3,
                          p1: wp.vec3, p2: wp.vec3, level: int, origin_scale: wp.float64) -> int:
