@@ -786,7 +786,8 @@ def region_corner(p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d, b0: wp.float64, b1: 
     return wp.vec3(p2 + (p0 - p2) * b0 + (p1 - p2) * b1)
 
 
-@wp.func
+# inlined: a call would copy the light buffers' struct (~0.6 KB) per region part
+@wp.func(inline=True)
 def region_part_is_clear(buffers: LightBuffers, light: int, face: int, positions: wp.array(dtype=wp.vec3),
                          indices: wp.array(dtype=wp.int32), c0: wp.vec3, c1: wp.vec3, c2: wp.vec3,
                          origin_scale: wp.float64) -> bool:
