@@ -322,7 +322,7 @@ def test_triangles_too_short_for_regions_are_not_sized(light):
     rng = np.random.default_rng(5)
     scene = scene_with_floor(icosphere(3), LIGHTS[light])
     centres = rng.uniform(-3.0, 3.0, (400, 3))
-    scale = 10.0 ** rng.uniform(-3.0, 0.5, (400, 1, 1))
+    scale = 10.0 ** rng.uniform(-3.0, -0.5, (400, 1, 1))
     corners = centres[:, None, :] + scale * rng.normal(size=(400, 3, 3))
     scene.add_mesh(trimesh.Trimesh(corners.reshape(-1, 3), np.arange(1200).reshape(-1, 3), process=False),
                    pw.Material())
@@ -337,8 +337,8 @@ def test_triangles_too_short_for_regions_are_not_sized(light):
     shortest = light_buffers._shortest_region_triangle(buffers, 0)
     assert np.all(longest[size > 0] > shortest)
     assert np.sum(size > 0) > 0
-    if buffers.clearance.numpy()[0] > 0.5:  # no random triangle near the light: most are skipped
-        assert np.sum(longest > shortest) < 0.5 * len(faces)
+    if buffers.clearance.numpy()[0] > 0.2:  # no random triangle near the light: the tiny ones are skipped
+        assert np.sum(longest <= shortest) > 0.05 * len(faces)
 
 
 def test_regions_stay_within_their_memory_budget(monkeypatch):
