@@ -74,7 +74,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     """The light buffers of every light of ``scene`` (uploaded as ``gpu``), cached on the scene.
 
     Triangle interiors are marked clear (kernels/light_buffer.mark_clear_interiors) when the
-    buffers are first reused, for a second frame: the marks cost about as much as the rest of the
+    buffers are first reused, for a second frame: the marks can cost as much as the rest of the
     build and pay off only over frames whose lights and geometry stay put, so a light moving every
     frame never pays for them. No triangle is marked where no shadow ray leaves it
     (front_only_faces)."""
