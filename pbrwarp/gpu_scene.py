@@ -310,16 +310,23 @@ def back_faces_unseen(prim, point=None) -> bool:
     return _is_closed_volume(prim)
 
 
+# Sets of per-triangle flags kept per kind on an uploaded geometry (face_flags).
+KEPT_FACE_FLAGS = 8
+
+
 def face_flags(gpu: GpuScene, kind: str, per_primitive: list[bool]) -> wp.array:
     """Per-primitive flags spread over the triangles (a uint8 wp.array, one entry per triangle),
-    kept on the uploaded geometry, the last set of each ``kind`` ("culling", "front lit", ...)."""
+    kept on the uploaded geometry: the same array for the same flags (lights that agree share
+    one), the last KEPT_FACE_FLAGS sets of each ``kind`` ("culling", "front only")."""
     geometry = gpu._keep[0]
-    cache = geometry.__dict__.setdefault("_face_flags", {})
+    cache = geometry.__dict__.setdefault("_face_flags", {}).setdefault(kind, {})
     key = tuple(bool(f) for f in per_primitive)
-    if cache.get(kind, (None,))[0] != key:
+    if key not in cache:
+        if len(cache) >= KEPT_FACE_FLAGS:
+            del cache[next(iter(cache))]
         per_mesh = np.array(key, dtype=np.uint8)
-        cache[kind] = (key, wp.array(per_mesh[geometry.face_primitive.numpy()], dtype=wp.uint8, device="cpu"))
-    return cache[kind][1]
+        cache[key] = wp.array(per_mesh[geometry.face_primitive.numpy()], dtype=wp.uint8, device="cpu")
+    return cache[key]
 
 
 def back_face_culling(scene, gpu: GpuScene, eye) -> tuple[wp.array | None, int]:

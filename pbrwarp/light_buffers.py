@@ -65,8 +65,7 @@ def front_only_faces(scene, gpu) -> list[wp.array]:
     out = []
     for light in scene.lights:
         point = np.asarray(light.position, dtype=np.float64) if hasattr(light, "position") else None
-        out.append(face_flags(gpu, f"front only, light {len(out)}",
-                              [back_faces_unseen(prim, point) for prim in scene.primitives]))
+        out.append(face_flags(gpu, "front only", [back_faces_unseen(prim, point) for prim in scene.primitives]))
     return out
 
 
