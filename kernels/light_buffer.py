@@ -221,15 +221,25 @@ def triangle_nearness(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3) -
     return float(d * (wp.float64(1.0) - wp.float64(NEAR_SHRINK)))
 
 
+@wp.func
+def listed_cells(closed: wp.array(dtype=wp.uint8), face: int, proj: Projection, p0: wp.vec3, p1: wp.vec3,
+                 p2: wp.vec3) -> wp.vec4i:
+    """The cells of one view whose lists hold triangle ``face``: triangle_cells, none where
+    never_first_blocker."""
+    if never_first_blocker(closed, face, proj, p0, p1, p2):
+        return empty_rect()
+    return triangle_cells(proj, p0, p1, p2)
+
+
 @wp.kernel
 def count_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), proj: Projection,
-                first_entry: int, triangles: int, counts: wp.array(dtype=wp.int32)):
-    """Per cell of one view (entries first_entry...), how many triangles it lists; one launch per
-    view, whose cells no other launch touches."""
+                first_entry: int, triangles: int, closed: wp.array(dtype=wp.uint8), counts: wp.array(dtype=wp.int32)):
+    """Per cell of one view (entries first_entry...), how many triangles it lists (all but those
+    never_first_blocker); one launch per view, whose cells no other launch touches."""
     start = wp.tid() * ITEMS_PER_THREAD
     for face in range(start, wp.min(start + ITEMS_PER_THREAD, triangles)):
         c = triangle_corners(indices, face)
-        r = triangle_cells(proj, positions[c[0]], positions[c[1]], positions[c[2]])
+        r = listed_cells(closed, face, proj, positions[c[0]], positions[c[1]], positions[c[2]])
         for y in range(r[1], r[3] + 1):
             for x in range(r[0], r[2] + 1):
                 e = first_entry + y * proj.width + x
@@ -238,16 +248,18 @@ def count_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.i
 
 @wp.kernel
 def fill_cells(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.int32), proj: Projection,
-               first_entry: int, triangles: int, cursors: wp.array(dtype=wp.int32),
-               cell_faces: wp.array(dtype=wp.int32), cell_near: wp.array(dtype=float)):
-    """Each triangle appended to the lists of the cells of one view it may be seen through."""
+               first_entry: int, triangles: int, closed: wp.array(dtype=wp.uint8),
+               cursors: wp.array(dtype=wp.int32), cell_faces: wp.array(dtype=wp.int32),
+               cell_near: wp.array(dtype=float)):
+    """Each triangle appended to the lists of the cells of one view it may be seen through (but
+    those never_first_blocker)."""
     start = wp.tid() * ITEMS_PER_THREAD
     for face in range(start, wp.min(start + ITEMS_PER_THREAD, triangles)):
         c = triangle_corners(indices, face)
         p0 = positions[c[0]]
         p1 = positions[c[1]]
         p2 = positions[c[2]]
-        r = triangle_cells(proj, p0, p1, p2)
+        r = listed_cells(closed, face, proj, p0, p1, p2)
         if r[0] <= r[2]:
             near = triangle_nearness(proj, p0, p1, p2)
             for y in range(r[1], r[3] + 1):
@@ -360,18 +372,43 @@ def light_plane(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d) -> L
 
 
 @wp.func
+def light_behind(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, margin: wp.float64) -> bool:
+    """Whether the light of view ``proj`` lies behind triangle p's front, the side its winding's
+    normal points to (surface_hit's), by more than ``margin`` (radians, about) off its plane."""
+    d0 = to_double(p0)
+    n = wp.cross(to_double(p1) - d0, to_double(p2) - d0)
+    towards = towards_light(proj, d0)
+    side = wp.dot(n, towards)
+    return side < wp.float64(0.0) and side * side > margin * margin * wp.dot(n, n) * wp.dot(towards, towards)
+
+
+@wp.func
 def no_shadow_rays_leave(front_only: wp.array(dtype=wp.uint8), face: int, proj: Projection, p0: wp.vec3,
                          p1: wp.vec3, p2: wp.vec3) -> bool:
     """Whether no shadow ray towards the light of view ``proj`` leaves triangle ``face``: it is
     shaded from its front only (front_only[face] set: pbrwarp.gpu_scene.back_faces_unseen) and the
-    light lies behind its front, the side its winding's normal points to (surface_hit's). Marks
-    are not worth making for it; a ray that rounding would still send from it is queried."""
+    light lies behind its front. Marks are not worth making for it; a ray that rounding would
+    still send from it is queried."""
     if face >= front_only.shape[0]:
         return False
     if front_only[face] == wp.uint8(0):
         return False
-    d0 = to_double(p0)
-    return wp.dot(wp.cross(to_double(p1) - d0, to_double(p2) - d0), towards_light(proj, d0)) < wp.float64(0.0)
+    return light_behind(proj, p0, p1, p2, wp.float64(0.0))
+
+
+@wp.func
+def never_first_blocker(closed: wp.array(dtype=wp.uint8), face: int, proj: Projection, p0: wp.vec3, p1: wp.vec3,
+                        p2: wp.vec3) -> bool:
+    """Whether triangle ``face`` need not be listed: it belongs to an opaque closed mesh with the
+    light outside (closed[face] set: light_buffers.closed_faces) and faces away from the light
+    (by LIGHT_SIDE_MARGIN). A segment towards the light that crosses such a triangle enters the
+    mesh there and must leave it, before the light, through a triangle facing the light, which is
+    listed and blocks the segment as well."""
+    if face >= closed.shape[0]:
+        return False
+    if closed[face] == wp.uint8(0):
+        return False
+    return light_behind(proj, p0, p1, p2, LIGHT_SIDE_MARGIN)
 
 
 @wp.kernel

@@ -294,13 +294,11 @@ def _bounds(prim) -> tuple[np.ndarray, np.ndarray]:
     return cached
 
 
-def back_faces_unseen(prim, point=None) -> bool:
-    """Whether no surface a ray from ``point`` (None: from infinitely far away) shows is a back
-    face of ``prim``: its material is single-sided (the render kernel passes through its back
-    faces), or it is an opaque closed volume and the point lies outside its bounding box (a ray
-    from outside enters it through a front face first)."""
-    if not prim.material.double_sided:
-        return True
+def closed_seen_from(prim, point=None) -> bool:
+    """Whether ``prim`` is an opaque closed volume and ``point`` (None: infinitely far away) lies
+    outside its bounding box, so outside the volume: a ray from there enters it through a front
+    face first, and a segment from anywhere to there that meets it leaves it through a front face
+    turned towards the point."""
     if prim.material.alpha_mode == "MASK":
         return False
     if point is not None:
@@ -308,6 +306,13 @@ def back_faces_unseen(prim, point=None) -> bool:
         if not (np.any(point < lo) or np.any(point > hi)):
             return False
     return _is_closed_volume(prim)
+
+
+def back_faces_unseen(prim, point=None) -> bool:
+    """Whether no surface a ray from ``point`` (None: from infinitely far away) shows is a back
+    face of ``prim``: its material is single-sided (the render kernel passes through its back
+    faces), or closed_seen_from(prim, point)."""
+    return not prim.material.double_sided or closed_seen_from(prim, point)
 
 
 # Sets of per-triangle flags kept per kind on an uploaded geometry (face_flags).

@@ -16,7 +16,7 @@ import warp as wp
 
 from . import huge_pages
 from .errors import InputError
-from .gpu_scene import back_faces_unseen, face_flags
+from .gpu_scene import back_faces_unseen, closed_seen_from, face_flags
 from .parallel import run_all, thread_count
 from .raster import projection
 from .shadow_maps import light_views, light_geometry
@@ -55,18 +55,29 @@ def launch_threads(items: int) -> int:
     return -(-items // int(lb.ITEMS_PER_THREAD))
 
 
+def _light_point(light):
+    """A light's position, None for a directional light (infinitely far away)."""
+    return np.asarray(light.position, dtype=np.float64) if hasattr(light, "position") else None
+
+
 def front_only_faces(scene, gpu) -> list[wp.array]:
     """Per light of ``scene``, per triangle (uint8): 1 where the triangle is shaded from its front
     only, as the light sees the scene: its mesh's back faces are never seen from the light's
-    position (gpu_scene.back_faces_unseen; directional lights from infinitely far away). There a
-    triangle facing away from the light sends no shadow ray towards it, and its marks are not worth
-    making (kernels/light_buffer.no_shadow_rays_leave). A camera that does see such back faces (one
+    position (gpu_scene.back_faces_unseen). There a triangle facing away from the light sends no
+    shadow ray towards it, and its marks are not worth making
+    (kernels/light_buffer.no_shadow_rays_leave). A camera that does see such back faces (one
     inside a closed mesh that the light is outside of) gets their shadows by queries."""
-    out = []
-    for light in scene.lights:
-        point = np.asarray(light.position, dtype=np.float64) if hasattr(light, "position") else None
-        out.append(face_flags(gpu, "front only", [back_faces_unseen(prim, point) for prim in scene.primitives]))
-    return out
+    return [face_flags(gpu, "front only", [back_faces_unseen(prim, _light_point(light)) for prim in scene.primitives])
+            for light in scene.lights]
+
+
+def closed_faces(scene, gpu) -> list[wp.array]:
+    """Per light of ``scene``, per triangle (uint8): 1 where the triangle's mesh is an opaque
+    closed volume with the light outside (gpu_scene.closed_seen_from). Its triangles facing away
+    from the light are not listed (kernels/light_buffer.never_first_blocker): whatever they would
+    block, one facing the light blocks too."""
+    return [face_flags(gpu, "closed", [closed_seen_from(prim, _light_point(light)) for prim in scene.primitives])
+            for light in scene.lights]
 
 
 def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
@@ -92,12 +103,13 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     positions, indices = gpu.data.positions, gpu.data.indices
     triangles = len(indices) // 3
     front_only = front_only_faces(scene, gpu)
+    closed = closed_faces(scene, gpu)
     lo, hi = scene.bounds()
     center = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
     clearances = _clearances(gpu, scene.lights)
-    views, spans = [], []
-    for light, clearance in zip(scene.lights, clearances):
+    views, spans, view_closed = [], [], []
+    for light, clearance, light_closed in zip(scene.lights, clearances, closed):
         if clearance < MIN_CLEARANCE_RADII * radius:
             spans.append((0, 0))
             continue
@@ -109,13 +121,14 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
             continue
         spans.append((len(views), len(light_projections)))
         views += light_projections
+        view_closed += [light_closed] * len(light_projections)
     cells = RESOLUTION * RESOLUTION
     # the large arrays on huge pages: their first touch would fault once per 4 KiB page
     counts = huge_pages.zeros(max(len(views), 1) * cells, wp.int32)
 
     def count(v):
         wp.launch(lb.count_cells, dim=launch_threads(triangles), device="cpu",
-                  inputs=[positions, indices, views[v], v * cells, triangles, counts])
+                  inputs=[positions, indices, views[v], v * cells, triangles, view_closed[v], counts])
 
     run_all(count, range(len(views)), threads)
     per_cell = counts.numpy().reshape(-1, cells)
@@ -147,7 +160,8 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
 
     def fill(v):
         wp.launch(lb.fill_cells, dim=launch_threads(triangles), device="cpu",
-                  inputs=[positions, indices, views[v], v * cells, triangles, cursors, cell_faces, cell_near])
+                  inputs=[positions, indices, views[v], v * cells, triangles, view_closed[v], cursors, cell_faces,
+                          cell_near])
 
     # views no triangle is seen in (often half of a point light's cube) need no more work
     run_all(fill, [v for v in kept if view_entries[v]], threads)

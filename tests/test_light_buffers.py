@@ -505,6 +505,41 @@ def test_no_marks_where_no_shadow_ray_leaves(material, monkeypatch):
                                    monkeypatch)
 
 
+@pytest.mark.parametrize("light", ["point", "point inside the cube of the mesh", "directional", "wide spot"])
+def test_closed_meshes_list_only_their_triangles_facing_the_light(light):
+    """A closed sphere lit from outside its bounding box lists none of its triangles turned away
+    from the light (a segment crossing one leaves the sphere through one facing the light); with
+    the light inside the box it lists them all; the open floor lists both faces. The verdicts
+    stay the BVH's (test_light_buffer_verdicts_are_the_bvhs)."""
+    for position, dropped in ((None, True), ((0.3, 0.2, 0.1), False)):
+        chosen = LIGHTS[light] if position is None or not hasattr(LIGHTS[light], "position") else dataclasses.replace(
+            LIGHTS[light], position=position)
+        if position is not None and not hasattr(chosen, "position"):
+            continue
+        scene = pw.Scene()
+        scene.add_mesh(icosphere(3).apply_scale(0.5), pw.Material())
+        scene.add_mesh(trimesh.Trimesh([[-4, -1, -4], [4, -1, -4], [4, -1, 4], [-4, -1, 4]], [[0, 2, 1], [0, 3, 2]]),
+                       pw.Material())
+        scene.add_light(chosen)
+        gpu = upload(scene)
+        buffers = build(scene, gpu)
+        assert buffers.light_views.numpy()[0][1] > 0
+        listed = np.zeros(buffers.triangles, bool)
+        listed[buffers.cell_faces.numpy()[: buffers.cell_start.numpy()[-1]]] = True
+        p = gpu.data.positions.numpy().astype(np.float64)[gpu.data.indices.numpy().reshape(-1, 3)]
+        normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        if hasattr(chosen, "position"):
+            towards = np.asarray(chosen.position) - p[:, 0]
+        else:
+            towards = -np.broadcast_to(np.asarray(chosen.direction), normal.shape)
+        away = np.einsum("ij,ij->i", normal, towards) < -1e-3 * np.linalg.norm(normal, axis=1) * np.linalg.norm(
+            towards, axis=1)
+        sphere = gpu.data.face_material.numpy() == 0
+        assert away[sphere].sum() > 100
+        assert not np.any(listed[sphere & away]) if dropped else np.all(listed[sphere & away])
+        assert np.all(listed[~sphere])
+
+
 @pytest.mark.parametrize("double_sided", [True, False])
 def test_a_floor_seen_only_from_below_the_light_gets_no_marks(double_sided, monkeypatch):
     """A floor wound to face down, under a light above: double-sided, its top is lit and marked
