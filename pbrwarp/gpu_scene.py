@@ -322,7 +322,7 @@ KEPT_FACE_FLAGS = 8
 def face_flags(gpu: GpuScene, kind: str, per_primitive: list[bool]) -> wp.array:
     """Per-primitive flags spread over the triangles (a uint8 wp.array, one entry per triangle),
     kept on the uploaded geometry: the same array for the same flags (lights that agree share
-    one), the last KEPT_FACE_FLAGS sets of each ``kind`` ("culling", "front only")."""
+    one), the last KEPT_FACE_FLAGS sets of each ``kind`` ("culling", "front only", "closed")."""
     geometry = gpu._keep[0]
     cache = geometry.__dict__.setdefault("_face_flags", {}).setdefault(kind, {})
     key = tuple(bool(f) for f in per_primitive)
