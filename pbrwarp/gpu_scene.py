@@ -63,10 +63,13 @@ class GpuScene:
     data: SceneData
     # one row per primitive, as uploaded (texture slots are -1 where a mesh has no UVs)
     material_rows: list
-    # kept alive while ``data`` refers to them
+    # kept alive while ``data`` refers to them; the first is the uploaded geometry
     _keep: tuple
-    # the rasterizer's clusters of data.positions and data.indices (pbrwarp.raster.triangle_clusters)
-    clusters: Clusters | None = None
+
+    @property
+    def clusters(self) -> Clusters:
+        """The rasterizer's clusters of data.positions and data.indices (pbrwarp.raster.triangle_clusters)."""
+        return self._keep[0].clusters
 
 
 def _primitive_tangents(prim):
@@ -242,8 +245,7 @@ def upload(scene) -> GpuScene:
     data.textures, data.texels = texels.table, texels.texels
     data.lights = wp.array(lights if lights else [LightData()], dtype=LightData, device="cpu")
     data.num_lights = len(lights)
-    gpu = GpuScene(data=data, material_rows=materials, _keep=(geometry, texels, data.materials, data.lights),
-                   clusters=geometry.clusters)
+    gpu = GpuScene(data=data, material_rows=materials, _keep=(geometry, texels, data.materials, data.lights))
     cache["rows"] = (rows_key, gpu)
     return gpu
 
