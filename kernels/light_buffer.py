@@ -362,24 +362,28 @@ def light_plane(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d) -> L
     plane = LightPlane()
     plane.normal = wp.cross(p1 - p0, p2 - p0)
     plane.normal_sq = wp.dot(plane.normal, plane.normal)
-    towards = towards_light(proj, p0)
-    side = wp.dot(plane.normal, towards)
-    plane.light_side = wp.float64(0.0)
-    if side * side > LIGHT_SIDE_MARGIN * LIGHT_SIDE_MARGIN * plane.normal_sq * wp.dot(towards, towards):
-        plane.light_side = wp.sign(side)
+    plane.light_side = light_side(proj, p0, p1, p2, LIGHT_SIDE_MARGIN)
     plane.far = farness(proj, p0, p1, p2, wp.float64(0.0))
     return plane
 
 
 @wp.func
-def light_behind(proj: Projection, p0: wp.vec3, p1: wp.vec3, p2: wp.vec3, margin: wp.float64) -> bool:
-    """Whether the light of view ``proj`` lies behind triangle p's front, the side its winding's
-    normal points to (surface_hit's), by more than ``margin`` (radians, about) off its plane."""
-    d0 = to_double(p0)
-    n = wp.cross(to_double(p1) - d0, to_double(p2) - d0)
-    towards = towards_light(proj, d0)
+def light_side(proj: Projection, p0: wp.vec3d, p1: wp.vec3d, p2: wp.vec3d, margin: wp.float64) -> wp.float64:
+    """The sign of the side of triangle p's plane that the light of view ``proj`` lies on, + in
+    front (where its winding's normal points, surface_hit's front), or 0 where the light lies
+    within ``margin`` (radians, about) of the plane."""
+    n = wp.cross(p1 - p0, p2 - p0)
+    towards = towards_light(proj, p0)
     side = wp.dot(n, towards)
-    return side < wp.float64(0.0) and side * side > margin * margin * wp.dot(n, n) * wp.dot(towards, towards)
+    if side * side > margin * margin * wp.dot(n, n) * wp.dot(towards, towards):
+        return wp.sign(side)
+    return wp.float64(0.0)
+
+
+@wp.func
+def flag_set(flags: wp.array(dtype=wp.uint8), face: int) -> bool:
+    """Whether per-triangle ``flags`` holds triangle ``face`` and it is set."""
+    return face < flags.shape[0] and flags[face] != wp.uint8(0)
 
 
 @wp.func
@@ -389,11 +393,9 @@ def no_shadow_rays_leave(front_only: wp.array(dtype=wp.uint8), face: int, proj: 
     shaded from its front only (front_only[face] set: pbrwarp.gpu_scene.back_faces_unseen) and the
     light lies behind its front. Marks are not worth making for it; a ray that rounding would
     still send from it is queried."""
-    if face >= front_only.shape[0]:
+    if not flag_set(front_only, face):
         return False
-    if front_only[face] == wp.uint8(0):
-        return False
-    return light_behind(proj, p0, p1, p2, wp.float64(0.0))
+    return light_side(proj, to_double(p0), to_double(p1), to_double(p2), wp.float64(0.0)) < wp.float64(0.0)
 
 
 @wp.func
@@ -404,11 +406,9 @@ def never_first_blocker(closed: wp.array(dtype=wp.uint8), face: int, proj: Proje
     (by LIGHT_SIDE_MARGIN). A segment towards the light that crosses such a triangle enters the
     mesh there and must leave it, before the light, through a triangle facing the light, which is
     listed and blocks the segment as well."""
-    if face >= closed.shape[0]:
+    if not flag_set(closed, face):
         return False
-    if closed[face] == wp.uint8(0):
-        return False
-    return light_behind(proj, p0, p1, p2, LIGHT_SIDE_MARGIN)
+    return light_side(proj, to_double(p0), to_double(p1), to_double(p2), LIGHT_SIDE_MARGIN) < wp.float64(0.0)
 
 
 @wp.kernel
@@ -420,11 +420,10 @@ def light_planes(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=wp.
     start = first + wp.tid() * ITEMS_PER_THREAD
     for face in range(start, wp.min(start + ITEMS_PER_THREAD, last)):
         c = triangle_corners(indices, face)
-        p0 = positions[c[0]]
-        p1 = positions[c[1]]
-        p2 = positions[c[2]]
-        plane = light_plane(proj, to_double(p0), to_double(p1), to_double(p2))
-        if no_shadow_rays_leave(front_only, face, proj, p0, p1, p2):
+        plane = light_plane(proj, to_double(positions[c[0]]), to_double(positions[c[1]]),
+                            to_double(positions[c[2]]))
+        # no_shadow_rays_leave, from the plane's side (0 already where the light is that close)
+        if plane.light_side < wp.float64(0.0) and flag_set(front_only, face):
             plane.light_side = wp.float64(0.0)
         planes[face] = plane
 

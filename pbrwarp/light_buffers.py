@@ -60,6 +60,12 @@ def _light_point(light):
     return np.asarray(light.position, dtype=np.float64) if hasattr(light, "position") else None
 
 
+def _per_light_face_flags(scene, gpu, kind: str, seen_from) -> list[wp.array]:
+    """Per light of ``scene``, gpu_scene.face_flags of ``seen_from(prim, the light's point)``."""
+    return [face_flags(gpu, kind, [seen_from(prim, _light_point(light)) for prim in scene.primitives])
+            for light in scene.lights]
+
+
 def front_only_faces(scene, gpu) -> list[wp.array]:
     """Per light of ``scene``, per triangle (uint8): 1 where the triangle is shaded from its front
     only, as the light sees the scene: its mesh's back faces are never seen from the light's
@@ -67,8 +73,7 @@ def front_only_faces(scene, gpu) -> list[wp.array]:
     shadow ray towards it, and its marks are not worth making
     (kernels/light_buffer.no_shadow_rays_leave). A camera that does see such back faces (one
     inside a closed mesh that the light is outside of) gets their shadows by queries."""
-    return [face_flags(gpu, "front only", [back_faces_unseen(prim, _light_point(light)) for prim in scene.primitives])
-            for light in scene.lights]
+    return _per_light_face_flags(scene, gpu, "front only", back_faces_unseen)
 
 
 def closed_faces(scene, gpu) -> list[wp.array]:
@@ -76,8 +81,7 @@ def closed_faces(scene, gpu) -> list[wp.array]:
     closed volume with the light outside (gpu_scene.closed_seen_from). Its triangles facing away
     from the light are not listed (kernels/light_buffer.never_first_blocker): whatever they would
     block, one facing the light blocks too."""
-    return [face_flags(gpu, "closed", [closed_seen_from(prim, _light_point(light)) for prim in scene.primitives])
-            for light in scene.lights]
+    return _per_light_face_flags(scene, gpu, "closed", closed_seen_from)
 
 
 def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
@@ -233,7 +237,7 @@ def region_grid_sizes(buffers: lb.LightBuffers, light: int, corners: np.ndarray,
     come to the light (no nearer than its clearance), in cells per radian, or in a parallel view
     in cells per unit."""
     view, scale = _cell_scale(buffers, light)
-    longest = np.max(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2), axis=1)
+    longest = _longest_edge(corners)
     if view["orthographic"]:
         towards_light = np.broadcast_to(-np.asarray(view["to_camera"], dtype=np.float64).reshape(3, 3)[2],
                                         (len(corners), 3))
@@ -320,10 +324,14 @@ def _longest_edges(gpu, faces: np.ndarray, positions: np.ndarray) -> np.ndarray:
         cached = np.empty(len(faces), dtype=np.float32)
         for start in range(0, len(faces), REGION_SIZING_BLOCK):
             corners = positions[faces[start:start + REGION_SIZING_BLOCK]]
-            cached[start:start + len(corners)] = np.max(
-                np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2), axis=1, initial=0.0)
+            cached[start:start + len(corners)] = _longest_edge(corners)
         geometry.__dict__["_longest_edges"] = cached
     return cached
+
+
+def _longest_edge(corners: np.ndarray) -> np.ndarray:
+    """Per triangle (``corners``: (n, 3, 3)), the length of its longest edge, in corners' dtype."""
+    return np.max(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2), axis=1, initial=0.0)
 
 
 def _shortest_region_triangle(buffers: lb.LightBuffers, light: int) -> float:
