@@ -845,20 +845,31 @@ def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=w
 
 
 @wp.func
-def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dtype=wp.int32),
-                bin_start: wp.array(dtype=wp.int32), total: wp.array(dtype=wp.int64)):
+def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dtype=wp.int32), tile_stride: int,
+                bin_start: wp.array(dtype=wp.int32), total: wp.array(dtype=wp.int64),
+                busy_tiles: wp.array(dtype=wp.int32)) -> int:
     """Run by one thread: bins are contiguous per tile, each owner's part (the triangles a launch
     binned) after the previous owners'. bin_start[tile] is where a tile's bin starts,
     cursors[owner, tile] where an owner's part of it does, total[0] the length of all bins (exact
-    in int64; offsets are meaningful only if it is below 2^31)."""
+    in int64; offsets are meaningful only if it is below 2^31). Returns how many tiles have a
+    nonempty bin, listed at the start of busy_tiles in the order of k tile_stride modulo the tile
+    count for k = 0, 1, ... (see _tile_stride in pbrwarp/raster.py)."""
+    tiles = tile_counts.shape[1]
     end = wp.int64(0)
-    for tile in range(tile_counts.shape[1]):
+    for tile in range(tiles):
         bin_start[tile] = int(end)
         for owner in range(tile_counts.shape[0]):
             cursors[owner, tile] = int(end)
             end = end + wp.int64(tile_counts[owner, tile])
-    bin_start[tile_counts.shape[1]] = int(end)
+    bin_start[tiles] = int(end)
     total[0] = end
+    busy = int(0)
+    for k in range(tiles):
+        tile = int((wp.int64(k) * wp.int64(tile_stride)) % wp.int64(tiles))
+        if bin_start[tile + 1] > bin_start[tile]:
+            busy_tiles[busy] = tile
+            busy += 1
+    return busy
 
 
 @wp.func
@@ -938,7 +949,9 @@ OCCLUSION_PASS = wp.constant(15)
 QUEUE_START = wp.constant(16)
 # the launches done, which launch 0 waits for before it returns
 FINISHED = wp.constant(17)
-SYNC_SLOTS = 18
+# How many tiles have a nonempty bin (listed in busy_tiles).
+BUSY_TILES = wp.constant(18)
+SYNC_SLOTS = 19
 # Pieces of the first stage per launch.
 START_PIECES_PER_LAUNCH = wp.constant(8)
 # Outcomes of binning: drawn (or drawing), an index out of range (nothing read through it), or
@@ -983,6 +996,30 @@ def all_done(sync: wp.array(dtype=wp.int32), slot: int, amount: int, total: int,
     passed back and forth for each stage's launch, cost ~1.5 ms of a call on two threads
     (development measurement, nothing to draw at 512²: 2.6-3.6 ms on two threads against
     1.1-2.5 on one)."""
+    ...
+
+
+@wp.func_native("""
+    int spins = 0;
+    while (__atomic_load_n(released.data, __ATOMIC_ACQUIRE) < epoch) {
+        if (__atomic_load_n(sync.data + aborted, __ATOMIC_ACQUIRE) != 0) return;
+#if defined(__x86_64__) || defined(__i386__)
+        __builtin_ia32_pause();
+#elif defined(__aarch64__) || defined(__arm__)
+        __builtin_arm_yield();
+#endif
+        if (++spins < spins_before_yield || os_yield == 0) continue;
+        spins = 0;
+        ((wp::int32 (*)(void))os_yield)();
+    }
+    """)
+def wait_for_release(released: wp.array(dtype=wp.int64), epoch: wp.int64, sync: wp.array(dtype=wp.int32),
+                     aborted: int, spins_before_yield: int, os_yield: wp.uint64):
+    """Spins as all_done does until released[0] >= epoch, which the caller's Python sets once
+    launch 0 has returned to it: a pool thread's launch returning with launch 0's took the GIL
+    first about half the time, and the caller then waited for the pool thread's way back to its
+    queue (2 threads, 1024²: ~0.1 ms a call; development). released[0] only grows, so that a
+    launch that sees it late, after the caller's next call began, still stops."""
     ...
 
 
@@ -1133,10 +1170,11 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                         tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
                         cursors: wp.array2d(dtype=wp.int32), bin_start: wp.array(dtype=wp.int32),
                         bin_total: wp.array(dtype=wp.int64), bins: wp.array(dtype=wp.int32),
-                        cluster_lower: wp.array(dtype=wp.vec3), cluster_upper: wp.array(dtype=wp.vec3),
-                        cluster_axis: wp.array(dtype=wp.vec3), cluster_spread: wp.array(dtype=float),
+                        busy_tiles: wp.array(dtype=wp.int32), cluster_lower: wp.array(dtype=wp.vec3),
+                        cluster_upper: wp.array(dtype=wp.vec3), cluster_axis: wp.array(dtype=wp.vec3),
+                        cluster_spread: wp.array(dtype=float),
                         cluster_rect: wp.array(dtype=wp.vec4i), cluster_nearest: wp.array(dtype=wp.float64),
-                        sync: wp.array(dtype=wp.int32),
+                        sync: wp.array(dtype=wp.int32), released: wp.array(dtype=wp.int64), epoch: wp.int64,
                         out: wp.array2d(dtype=wp.uint64)):
     """The whole visibility buffer: launched with one index on each of ``launches`` threads
     (``launch`` = 0, 1, ...) side by side, which meet at spinning barriers (all_arrived) between
@@ -1164,13 +1202,15 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     then lays out the bins (bin_offsets) and records the OUTCOME in ``sync``; all stop unless it
     is BINNED (or if stop_after_binning, to time the parts apart). From FILL: each listed
     triangle's slot appended to the bin of every tile its rectangle touches, owner by owner from
-    another queue; then tiles taken from a third queue, the k-th taken tile k tile_stride modulo
-    the tile count, each drawn by the launch that took it alone (rasterize_tile). Every queue
+    another queue; then the tiles with a nonempty bin taken from a third queue, in the order of k
+    tile_stride modulo the tile count (busy_tiles), each drawn by the launch that took it alone
+    (rasterize_tile). Every queue
     hands out work to whichever launch asks first, so one with cheaper work (culled back faces,
     triangles off screen) takes more. The projection is cam's (camera_projection, parallel if
     ``orthographic``); a camera without usable axes draws nothing, its OUTCOME BAD_CAMERA.
     Launch 0 returns only once every launch is done (the FINISHED count), so that the buffer is
-    complete when it has (a call stopped after binning counts none). ``sync`` must be zeroed
+    complete when it has (a call stopped after binning counts none); the others once released[0]
+    has reached ``epoch`` too (wait_for_release). ``sync`` must be zeroed
     before a call (and its FILL barrier, queues and outcome before resuming there); ``os_yield``
     is all_arrived's.
     """
@@ -1252,7 +1292,7 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                 if bad_indices[owner] != 0:
                     outcome = BAD_INDEX
             if outcome == BINNED:
-                bin_offsets(tile_counts, cursors, bin_start, bin_total)
+                sync[BUSY_TILES] = bin_offsets(tile_counts, cursors, tile_stride, bin_start, bin_total, busy_tiles)
                 if bin_total[0] > wp.int64(bins.shape[0]):
                     outcome = BINS_TOO_SMALL
             sync[OUTCOME] = outcome
@@ -1268,14 +1308,18 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
         owner = take_next_item_from(sync, QUEUE_FILL)
     if not all_arrived(sync, BARRIER_FILLED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
         return
-    tiles = bin_start.shape[0] - 1
+    # only tiles with something to draw are handed out: a ticket, the queue's counter taken from
+    # the other core's cache, cost more than an empty tile (2 threads: ~60 us of the 1024 tiles'
+    # ~70 at 1024², where dense meshes bin almost nothing; development)
+    busy = sync[BUSY_TILES]
     k = take_next_item_from(sync, QUEUE_TILES)
-    while k < tiles:
-        tile = int((wp.int64(k) * wp.int64(tile_stride)) % wp.int64(tiles))
-        rasterize_tile(tile, positions, indices, screen, depth_weights, binned_face, binned_rect, bin_start, bins,
-                       samples, spp, cam, proj, tiles_x, out)
+    while k < busy:
+        rasterize_tile(busy_tiles[k], positions, indices, screen, depth_weights, binned_face, binned_rect, bin_start,
+                       bins, samples, spp, cam, proj, tiles_x, out)
         k = take_next_item_from(sync, QUEUE_TILES)
     # launch 0 returns once every launch is done drawing, so that the caller need not wait for the
     # pool threads' return to Python and their wake-up of it (~0.1 ms a call, development); the
     # launches that stop earlier all stop at the same stage, having drawn all they draw
     all_done(sync, FINISHED, 1, wp.where(launch == 0, launches, 0), ABORTED, SPINS_BEFORE_YIELD, os_yield)
+    if launch != 0:
+        wait_for_release(released, epoch, sync, ABORTED, SPINS_BEFORE_YIELD, os_yield)

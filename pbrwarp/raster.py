@@ -87,7 +87,7 @@ def _replay_launch(recorded: dict, key, kernel, inputs: list):
     ``recorded`` (one thread's _scratch.arrays) under ``key``, packed again but for the arrays
     that are the very objects it last had (an array's memory never moves) and the plain numbers
     equal to the last ones; a struct may have been changed in place, so structs are always
-    packed: packing visibility_pipeline's 38 arguments costs ~0.12 ms a launch (development), a
+    packed: packing visibility_pipeline's 41 arguments costs ~0.12 ms a launch (development), a
     few percent of a 512² call. The record keeps its last inputs (the caller's mesh and buffer
     arrays among them) alive until the next call."""
     entry = recorded.get((key, "launch"))
@@ -307,6 +307,7 @@ class _Layout:
     cursors: wp.array
     bin_start: wp.array
     bin_total: wp.array
+    busy_tiles: wp.array
     cluster_rect: wp.array
     cluster_nearest: wp.array
     # one block, zeroed before each call, holding binned_count, bad_indices, sync and tile_counts;
@@ -353,6 +354,7 @@ def _call_layout(scratch: dict, vertices: int, triangles: int, width: int, heigh
         bin_start=_scratch_array(scratch, "bin_start", tiles + 1, wp.int32),
         # written by the pipeline before it is read
         bin_total=_scratch_array(scratch, "bin_total", 1, wp.int64),
+        busy_tiles=_scratch_array(scratch, "busy_tiles", tiles, wp.int32),
         cluster_rect=_scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i),
         cluster_nearest=_scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64),
         zeroed=zeroed, zeroed_view=zeroed.numpy(), sync_view=sync.numpy(), binned_count=zeroed[:threads],
@@ -449,6 +451,12 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     if out is None:
         out = huge_pages.empty((height, width * spp), wp.uint64)
 
+    released = scratch.get("released")
+    if released is None:
+        released = scratch["released"] = wp.zeros(1, dtype=wp.int64, device="cpu")
+        scratch["released_view"] = released.numpy()
+    released_view = scratch["released_view"]
+
     def run(first_stage, stop_after_binning):
         def launch(k):
             try:
@@ -458,13 +466,18 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                                 samples, spp, MIN_VERTEX_SHARE, layout.batch_size, layout.batch_stride, triangles,
                                 layout.tiles_x, layout.tile_stride, cull_back_faces, layout.binned_count,
                                 layout.binned_face, layout.binned_rect, layout.tile_counts, layout.bad_indices,
-                                layout.cursors, layout.bin_start, layout.bin_total, bins, *cluster_arrays,
-                                layout.cluster_rect, layout.cluster_nearest, sync, out])
+                                layout.cursors, layout.bin_start, layout.bin_total, bins, layout.busy_tiles,
+                                *cluster_arrays, layout.cluster_rect, layout.cluster_nearest, sync, released, epoch,
+                                out])
             except BaseException:
                 layout.sync_view[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one
                 raise
 
-        join = run_together(launch, threads, join=False)
+        epoch = scratch["epoch"] = scratch.get("epoch", 0) + 1
+        try:
+            join = run_together(launch, threads, join=False)
+        finally:
+            released_view[0] = epoch  # the pool threads' launches return (kernels/raster.py wait_for_release)
         if layout.sync_view[int(rk.ABORTED)] != 0:
             join()  # a pool thread's launch failed: its error, raised here
             raise RuntimeError("the raster's launches were aborted")

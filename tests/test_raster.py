@@ -606,6 +606,28 @@ def test_a_call_does_not_depend_on_what_earlier_calls_left_in_the_threads_scratc
         np.testing.assert_array_equal(buffer, fresh[0])
 
 
+def test_back_to_back_calls_release_their_pool_launches():
+    """The pool threads' launches of a call return only once its Python has released them
+    (kernels/raster.py wait_for_release), and the next call zeroes the shared slots at once: a
+    pool launch that sees its release late, after the next call began, must still return, or
+    the next call's launches would wait for it forever. Calls in quick succession, alternating
+    thread counts and shapes (layouts sharing their scratch), must all finish, and match."""
+    import faulthandler
+
+    geom = Geometry(scene_of(icosphere(3)))
+    cameras = [camera_data(camera, 48 + 16 * k, 40) for k, camera in
+               enumerate(random_cameras(scene_of(icosphere(3)), 3, seed=21))]
+    expected = [visibility_buffer(geom.positions, geom.indices, cam, threads=1).numpy().copy() for cam in cameras]
+    faulthandler.dump_traceback_later(120, exit=True)  # a hang fails the run instead of stalling it
+    try:
+        for k in range(300):
+            cam = k % 3
+            buffer = visibility_buffer(geom.positions, geom.indices, cameras[cam], threads=(2, 3, 2, 4)[k % 4])
+            np.testing.assert_array_equal(buffer.numpy(), expected[cam])
+    finally:
+        faulthandler.cancel_dump_traceback_later()
+
+
 def test_a_replayed_call_sees_a_camera_and_positions_changed_in_place():
     """visibility_buffer replays its thread's last launch, packing again all but the arrays it
     already had: the same CameraData moved in place, the same positions array changed in place
