@@ -7,8 +7,9 @@ side (Warp CPU launches run on one thread and release the GIL), meeting at barri
 the kernel rather than return to Python: the buffer cleared and vertices projected (a share
 each); triangles' screen rectangles, small triangles drawn into the buffer at once (atomic
 minima, as two threads may write one sample) and larger ones binned into TILE_SIZE tiles, in
-small batches of triangles taken from a shared queue; the bins laid out and filled; then
-tiles taken from another queue, a tile drawn by one launch only. A sample keeps the minimum of
+small batches of triangles, each launch taking those of its own part of the mesh first and
+then what is left of the others'; the bins laid out and filled; then the tiles with something
+to draw taken from a queue, a tile drawn by one launch only. A sample keeps the minimum of
 its entries whatever the order they come in, so the buffer does not depend on the thread count.
 With a mesh's :func:`triangle_clusters`, clusters off screen, facing away (where flagged) or
 hidden behind what the clusters facing the eye drew are skipped (kernels/occlusion.py)."""
@@ -33,20 +34,21 @@ from pbrwarp.kernels import raster as rk
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
 from pbrwarp.kernels.projection import projection_of
+from pbrwarp.kernels.work_queue import RANGE_STRIDE
 
 NO_TRIANGLE = 0xFFFFFFFFFFFFFFFF
 TILE_SIZE = int(rk.TILE_SIZE)
 MAX_IMAGE_SIZE = rk.MAX_IMAGE_SIZE
 # Fewest vertices worth a piece of projection: below this, sharing costs more than the work.
 MIN_VERTEX_SHARE = 4096
-# Batches of triangles per thread, taken from a shared queue in each pass: a thread whose
-# batches cost less (back faces culled, triangles off screen, clusters deferred) takes more
-# rather than waiting, and the last batch taken, which the other threads wait for at the
-# pass's barrier, is short; at most MAX_BATCH triangles, at least a cluster. (Batches are not
-# the binning's unit, which is the launch, so their number costs only a queue ticket each.
-# Chunks of binning, 16 a thread, had been the unit: cycle-counter stamps, 2 threads, 1024²,
-# development, showed a launch waiting ~1 ms for the other's last chunk at the end of the
-# first pass, for the happy Buddha and the 327k-triangle icosphere.)
+# Batches of triangles per thread in each pass, the thread's own range of them taken first: a
+# thread whose batches cost less (back faces culled, triangles off screen, clusters deferred)
+# then takes the others' rather than waiting, and the last batch taken, which the other threads
+# wait for at the pass's barrier, is short; at most MAX_BATCH triangles, at least a cluster.
+# (Batches are not the binning's unit, which is the launch, so their number costs only an
+# atomic take each. Chunks of binning, 16 a thread, had been the unit: cycle-counter stamps,
+# 2 threads, 1024², development, showed a launch waiting ~1 ms for the other's last chunk at
+# the end of the first pass, for the happy Buddha and the 327k-triangle icosphere.)
 BATCHES_PER_THREAD = 64
 MAX_BATCH = 2048
 # Sample-position arrays kept for reuse (they depend on the image size, spp and seed only).
@@ -308,6 +310,7 @@ class _Layout:
     bin_start: wp.array
     bin_total: wp.array
     busy_tiles: wp.array
+    batch_ranges: wp.array
     cluster_rect: wp.array
     cluster_nearest: wp.array
     # one block, zeroed before each call, holding binned_count, bad_indices, sync and tile_counts;
@@ -355,6 +358,7 @@ def _call_layout(scratch: dict, vertices: int, triangles: int, width: int, heigh
         # written by the pipeline before it is read
         bin_total=_scratch_array(scratch, "bin_total", 1, wp.int64),
         busy_tiles=_scratch_array(scratch, "busy_tiles", tiles, wp.int32),
+        batch_ranges=_scratch_array(scratch, "batch_ranges", 2 * threads * RANGE_STRIDE, wp.int64),
         cluster_rect=_scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i),
         cluster_nearest=_scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64),
         zeroed=zeroed, zeroed_view=zeroed.numpy(), sync_view=sync.numpy(), binned_count=zeroed[:threads],
@@ -467,7 +471,8 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                                 layout.tiles_x, layout.tile_stride, cull_back_faces, layout.binned_count,
                                 layout.binned_face, layout.binned_rect, layout.tile_counts, layout.bad_indices,
                                 layout.cursors, layout.bin_start, layout.bin_total, bins, layout.busy_tiles,
-                                *cluster_arrays, layout.cluster_rect, layout.cluster_nearest, sync, released, epoch,
+                                *cluster_arrays, layout.cluster_rect, layout.cluster_nearest, sync, layout.batch_ranges,
+                                released, epoch,
                                 out])
             except BaseException:
                 layout.sync_view[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one

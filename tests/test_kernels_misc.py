@@ -8,6 +8,7 @@ import warp as wp
 import pbrwarp as pw
 from pbrwarp.kernels.sampling import multi_jittered_sample
 from pbrwarp.kernels.textures import TextureData, sample_texture
+from pbrwarp.kernels.work_queue import add_atomically, take_from_range
 
 import reference as ref
 
@@ -134,3 +135,50 @@ def test_reinhard_matches_definition():
     out = frame_of(np.stack([x, x, x], -1)).to_srgb8(tonemap="reinhard")[0, :, 0].astype(int)
     want = np.floor(ref.srgb_encode(x / (1 + x)) * 255 + 0.5)
     assert np.max(np.abs(out - want)) <= 1
+
+
+@wp.kernel(enable_backward=False)
+def take_every_item(launch: int, launches: int, ranges: wp.array(dtype=wp.int64), taken_by: wp.array(dtype=wp.int32),
+                    times_taken: wp.array(dtype=wp.int32)):
+    # as visibility_pipeline takes its batches: its own range from the start, then the others' from their ends
+    owner = launch
+    while True:
+        item = take_from_range(ranges, owner, owner == launch)
+        if item < 0:
+            owner = (owner + 1) % launches
+            if owner == launch:
+                break
+            continue
+        add_atomically(times_taken, item, 1)
+        taken_by[item] = launch
+
+
+@pytest.mark.parametrize("launches", [1, 2, 3, 5])
+def test_ranges_hand_out_every_item_once_to_launches_running_at_once(launches):
+    """kernels/work_queue.py take_from_range: launches side by side on the thread pool, each taking
+    its own range's items from the start and the others' from the end, take every item exactly
+    once, however the ranges are sized (one empty here) and wherever the owner and the others meet."""
+    from pbrwarp.kernels.work_queue import RANGE_STRIDE, reset_range
+    from pbrwarp.parallel import run_together
+
+    @wp.kernel(enable_backward=False)
+    def set_ranges(ranges: wp.array(dtype=wp.int64), bounds: wp.array(dtype=wp.vec2i)):
+        k = wp.tid()
+        reset_range(ranges, k, bounds[k][0], bounds[k][1])
+
+    rng = np.random.default_rng(launches)
+    for _ in range(20):
+        cuts = np.sort(rng.integers(0, 60000, launches - 1)) if launches > 1 else np.array([], dtype=int)
+        edges = np.concatenate([[0], cuts, [60000]])
+        if launches > 2:
+            edges[2] = edges[1]  # an empty range
+        bounds = wp.array(np.stack([edges[:-1], edges[1:]], axis=1).astype(np.int32), dtype=wp.vec2i)
+        ranges = wp.empty(launches * RANGE_STRIDE, dtype=wp.int64)
+        wp.launch(set_ranges, dim=launches, inputs=[ranges, bounds])
+        taken_by = wp.full(60000, -1, dtype=wp.int32)
+        times_taken = wp.zeros(60000, dtype=wp.int32)
+        run_together(lambda k: wp.launch(take_every_item, dim=1, device="cpu",
+                                         inputs=[k, launches, ranges, taken_by, times_taken]), launches)
+        assert (times_taken.numpy() == 1).all()
+        owners = taken_by.numpy()
+        assert ((owners >= 0) & (owners < launches)).all()
