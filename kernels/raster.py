@@ -18,7 +18,8 @@ A parallel projection (Projection.orthographic) serves directional lights' shado
 visibility_pipeline runs the stages, launched once per thread, the launches meeting at barriers:
 the buffer cleared and vertices projected; then per triangle its screen rectangle, small
 triangles drawn at once with atomic minima and larger ones binned into tiles; then the binned
-ones drawn, tiles taken from a queue shared by the launches. Given a mesh's clusters
+ones drawn, tile by tile. Each launch takes the triangles of its own range of the mesh and the
+tiles of its own band of the image first, then what is left of the others'. Given a mesh's clusters
 (kernels/occlusion.py), it skips those off screen or (where flagged) facing away and, where
 enough face away, draws in two passes: the clusters facing the eye first, then those facing
 away that the first pass does not hide.
@@ -845,15 +846,14 @@ def count_triangle(positions: wp.array(dtype=wp.vec3), indices: wp.array(dtype=w
 
 
 @wp.func
-def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dtype=wp.int32), tile_stride: int,
+def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dtype=wp.int32),
                 bin_start: wp.array(dtype=wp.int32), total: wp.array(dtype=wp.int64),
                 busy_tiles: wp.array(dtype=wp.int32)) -> int:
     """Run by one thread: bins are contiguous per tile, each owner's part (the triangles a launch
     binned) after the previous owners'. bin_start[tile] is where a tile's bin starts,
     cursors[owner, tile] where an owner's part of it does, total[0] the length of all bins (exact
     in int64; offsets are meaningful only if it is below 2^31). Returns how many tiles have a
-    nonempty bin, listed at the start of busy_tiles in the order of k tile_stride modulo the tile
-    count for k = 0, 1, ... (see _tile_stride in pbrwarp/raster.py)."""
+    nonempty bin, listed at the start of busy_tiles in row-major order."""
     tiles = tile_counts.shape[1]
     end = wp.int64(0)
     for tile in range(tiles):
@@ -864,8 +864,7 @@ def bin_offsets(tile_counts: wp.array2d(dtype=wp.int32), cursors: wp.array2d(dty
     bin_start[tiles] = int(end)
     total[0] = end
     busy = int(0)
-    for k in range(tiles):
-        tile = int((wp.int64(k) * wp.int64(tile_stride)) % wp.int64(tiles))
+    for tile in range(tiles):
         if bin_start[tile + 1] > bin_start[tile]:
             busy_tiles[busy] = tile
             busy += 1
@@ -923,33 +922,30 @@ def rasterize_tile(tile: int, positions: wp.array(dtype=wp.vec3), indices: wp.ar
 
 
 # ---------------------------------------------------------------------- the pipeline
-# Slots of the int32 ``sync`` array shared by a call's launches: the work queues of filling and
-# tiles; one arrival counter per barrier; the abort flag (set from Python when a launch fails to
+# Slots of the int32 ``sync`` array shared by a call's launches: the work queue of filling; one
+# arrival counter per barrier; the abort flag (set from Python when a launch fails to
 # start, lest the others wait for it forever); the outcome of binning.
 QUEUE_FILL = wp.constant(0)
-QUEUE_TILES = wp.constant(1)
-BARRIER_PROJECTED = wp.constant(2)
-BARRIER_COUNTED = wp.constant(3)
-BARRIER_OFFSETS = wp.constant(4)
-BARRIER_FILLED = wp.constant(5)
-ABORTED = wp.constant(6)
-OUTCOME = wp.constant(7)
+BARRIER_PROJECTED = wp.constant(1)
+BARRIER_COUNTED = wp.constant(2)
+BARRIER_OFFSETS = wp.constant(3)
+BARRIER_FILLED = wp.constant(4)
+ABORTED = wp.constant(5)
+OUTCOME = wp.constant(6)
 # with occlusion culling: one more barrier, and how many clusters were off screen, deferred,
 # then found occluded, and culled as facing away
-BARRIER_DRAWN_FIRST = wp.constant(8)
-CLUSTERS_OFF_SCREEN = wp.constant(9)
-CLUSTERS_DEFERRED = wp.constant(10)
-CLUSTERS_OCCLUDED = wp.constant(11)
-CLUSTERS_FACING_AWAY = wp.constant(12)
+BARRIER_DRAWN_FIRST = wp.constant(7)
+CLUSTERS_OFF_SCREEN = wp.constant(8)
+CLUSTERS_DEFERRED = wp.constant(9)
+CLUSTERS_OCCLUDED = wp.constant(10)
+CLUSTERS_FACING_AWAY = wp.constant(11)
 # whether this call draws in two passes (occlusion_pass_pays, decided by launch 0)
-OCCLUSION_PASS = wp.constant(13)
+OCCLUSION_PASS = wp.constant(12)
 # the queue of the first stage's pieces (rows to clear, vertices to project)
-QUEUE_START = wp.constant(14)
+QUEUE_START = wp.constant(13)
 # the launches done, which launch 0 waits for before it returns
-FINISHED = wp.constant(15)
-# how many tiles have a nonempty bin (listed in busy_tiles)
-BUSY_TILES = wp.constant(16)
-SYNC_SLOTS = 17
+FINISHED = wp.constant(14)
+SYNC_SLOTS = 15
 # Pieces of the first stage per launch.
 START_PIECES_PER_LAUNCH = wp.constant(8)
 # Outcomes of binning: drawn (or drawing), an index out of range (nothing read through it), or
@@ -1162,7 +1158,7 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                         indices: wp.array(dtype=wp.int32), vertex_count: int, screen: wp.array(dtype=wp.vec2i),
                         depth_weights: wp.array(dtype=wp.float64), cam: CameraData, orthographic: int,
                         samples: wp.array2d(dtype=wp.vec2), spp: int, min_vertex_share: int, batch_size: int,
-                        batch_stride: int, triangles: int, tiles_x: int, tile_stride: int,
+                        batch_stride: int, triangles: int, tiles_x: int,
                         cull_back_faces: wp.array(dtype=wp.uint8), binned_count: wp.array(dtype=wp.int32),
                         binned_face: wp.array(dtype=wp.int32), binned_rect: wp.array(dtype=wp.vec4i),
                         tile_counts: wp.array2d(dtype=wp.int32), bad_indices: wp.array(dtype=wp.int32),
@@ -1179,14 +1175,14 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     (``launch`` = 0, 1, ...) side by side, which meet at spinning barriers (all_arrived) between
     stages.
 
-    From START: the buffer's rows cleared and the vertices projected, in pieces taken from a
-    queue (launch 0 first decides on the occlusion pass and sets out the batch ranges), until all
-    are done (all_done); then batches of batch_size triangles: launch k owns the range of
-    batch_stride batches from k batch_stride (in ``batch_ranges``, one set of ranges per pass) and
-    takes them in order, then takes what is left of the others' ranges from their ends
+    From START: the buffer's rows cleared and the vertices projected, in pieces taken from a queue
+    (launch 0 first decides on the occlusion pass and sets out the batch ranges), until all are done
+    (all_done); then batches of batch_size triangles: launch k owns the range of batch_stride
+    batches from k batch_stride (in ``batch_ranges``: a set of ranges per pass, one for the tiles)
+    and takes them in order, then takes what is left of the others' ranges from their ends
     (take_from_range), so that each draws a region of the mesh of its own, on screen mostly apart
-    from the others', and finds the buffer's lines there in its own core's cache (the batches of
-    one shared queue had each launch draw all over the mesh: 2 threads, 1024², development A/B,
+    from the others', and finds the buffer's lines there in its own core's cache (the batches of one
+    shared queue had each launch draw all over the mesh: 2 threads, 1024², development A/B,
     icosphere 3.8-3.9 -> 3.5 ms, bunny 4.2-4.8 -> 3.9-4.0, happy Buddha 17.4-17.9 -> 16.2-16.4):
     small triangles drawn into the buffer at once (atomically, as another launch may draw the same
     sample), the others that may cover a sample listed by the launch that drew them (their owner)
@@ -1201,20 +1197,19 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     first those facing the eye or not testable, the others deferred (their rectangle and nearest
     depth kept in cluster_rect and cluster_nearest); then, once every launch has drawn its
     first-pass batches, the deferred clusters that what the buffer holds by then does not hide
-    (is_occluded), their batches taken from the second pass's ranges. Launch 0
-    then lays out the bins (bin_offsets) and records the OUTCOME in ``sync``; all stop unless it
-    is BINNED (or if stop_after_binning, to time the parts apart). From FILL: each listed
-    triangle's slot appended to the bin of every tile its rectangle touches, owner by owner from
-    another queue; then the tiles with a nonempty bin taken from a third queue, in the order of k
-    tile_stride modulo the tile count (busy_tiles), each drawn by the launch that took it alone
-    (rasterize_tile). Every queue and range hands out work to whichever launch asks first, so one
-    with cheaper work (culled back faces, triangles off screen) takes more. The projection is
-    cam's (camera_projection, parallel if ``orthographic``); a camera without usable axes draws
-    nothing, its OUTCOME BAD_CAMERA.
-    Launch 0 returns only once every launch is done (the FINISHED count), so that the buffer is
-    complete when it has (a call stopped after binning counts none); the others once released[0]
-    has reached ``epoch`` too (wait_for_release). ``sync`` must be zeroed
-    before a call (and its FILL barrier, queues and outcome before resuming there); ``os_yield``
+    (is_occluded), their batches taken from the second pass's ranges. Launch 0 then lays out the
+    bins (bin_offsets) and records the OUTCOME in ``sync``; all stop unless it is BINNED (or if
+    stop_after_binning, to time the parts apart). From FILL: each listed triangle's slot appended
+    to the bin of every tile its rectangle touches, owner by owner from another queue; then the
+    tiles with a nonempty bin (busy_tiles, in row-major order), a band of them per launch taken
+    as the batches are, each drawn by the launch that took it alone (rasterize_tile). Every queue
+    and range hands out work to whichever launch asks first, so one with cheaper work (culled
+    back faces, triangles off screen) takes more. The projection is cam's (camera_projection,
+    parallel if ``orthographic``); a camera without usable axes draws nothing, its OUTCOME
+    BAD_CAMERA. Launch 0 returns only once every launch is done (the FINISHED count), so that the
+    buffer is complete when it has (a call stopped after binning counts none); the others once
+    released[0] has reached ``epoch`` too (wait_for_release). ``sync`` must be zeroed before a
+    call (and its FILL barrier, queues and outcome before resuming there); ``os_yield``
     is all_arrived's.
     """
     # each launch derives the same projection (computing it costs less than packing it in Python)
@@ -1300,7 +1295,11 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                 if bad_indices[owner] != 0:
                     outcome = BAD_INDEX
             if outcome == BINNED:
-                sync[BUSY_TILES] = bin_offsets(tile_counts, cursors, tile_stride, bin_start, bin_total, busy_tiles)
+                busy = bin_offsets(tile_counts, cursors, bin_start, bin_total, busy_tiles)
+                share = (busy + launches - 1) / launches
+                for owner in range(launches):  # the tiles' ranges, a band of the image each
+                    reset_range(batch_ranges, 2 * launches + owner, wp.min(owner * share, busy),
+                                wp.min((owner + 1) * share, busy))
                 if bin_total[0] > wp.int64(bins.shape[0]):
                     outcome = BINS_TOO_SMALL
             sync[OUTCOME] = outcome
@@ -1316,15 +1315,21 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
         owner = take_next_item_from(sync, QUEUE_FILL)
     if not all_arrived(sync, BARRIER_FILLED, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
         return
-    # only tiles with something to draw are handed out: a ticket, the queue's counter taken from
-    # the other core's cache, cost more than an empty tile (2 threads: ~60 us of the 1024 tiles'
-    # ~70 at 1024², where dense meshes bin almost nothing; development)
-    busy = sync[BUSY_TILES]
-    k = take_next_item_from(sync, QUEUE_TILES)
-    while k < busy:
+    # only tiles with something to draw are handed out: taking one from a queue shared by the
+    # launches, its counter fetched from the other core's cache, cost more than an empty tile
+    # (2 threads: ~60 us of the 1024 tiles' ~70 at 1024², where dense meshes bin almost nothing;
+    # development); each launch draws its own band of them first, then takes the others' from
+    # their ends, far from where their owners draw
+    owner = launch
+    while True:
+        k = take_from_range(batch_ranges, 2 * launches + owner, owner == launch)
+        if k < 0:
+            owner = (owner + 1) % launches
+            if owner == launch:
+                break
+            continue
         rasterize_tile(busy_tiles[k], positions, indices, screen, depth_weights, binned_face, binned_rect, bin_start,
                        bins, samples, spp, cam, proj, tiles_x, out)
-        k = take_next_item_from(sync, QUEUE_TILES)
     # launch 0 returns once every launch is done drawing, so that the caller need not wait for the
     # pool threads' return to Python and their wake-up of it (~0.1 ms a call, development); the
     # launches that stop earlier all stop at the same stage, having drawn all they draw

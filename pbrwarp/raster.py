@@ -1,18 +1,18 @@
 """Primary visibility by rasterization (kernels/raster.py), on every core.
 
 :func:`visibility_buffer` gives, per sample, the nearest triangle and its depth. Sample
-positions are camera independent and cached. The rest is one launch of
-kernels/raster.py's visibility_pipeline per thread, the calling thread and pool threads side by
-side (Warp CPU launches run on one thread and release the GIL), meeting at barriers that spin in
-the kernel rather than return to Python: the buffer cleared and vertices projected (a share
-each); triangles' screen rectangles, small triangles drawn into the buffer at once (atomic
-minima, as two threads may write one sample) and larger ones binned into TILE_SIZE tiles, in
-small batches of triangles, each launch taking those of its own part of the mesh first and
-then what is left of the others'; the bins laid out and filled; then the tiles with something
-to draw taken from a queue, a tile drawn by one launch only. A sample keeps the minimum of
-its entries whatever the order they come in, so the buffer does not depend on the thread count.
-With a mesh's :func:`triangle_clusters`, clusters off screen, facing away (where flagged) or
-hidden behind what the clusters facing the eye drew are skipped (kernels/occlusion.py)."""
+positions are camera independent and cached. The rest is one launch of kernels/raster.py's
+visibility_pipeline per thread, the calling thread and pool threads side by side (Warp CPU
+launches run on one thread and release the GIL), meeting at barriers that spin in the kernel
+rather than return to Python: the buffer cleared and vertices projected (a share each);
+triangles' screen rectangles, small triangles drawn into the buffer at once (atomic minima, as
+two threads may write one sample) and larger ones binned into TILE_SIZE tiles, in small batches
+of triangles, each launch taking those of its own part of the mesh first and then what is left
+of the others'; the bins laid out and filled; then the tiles with something to draw, in bands
+taken as the batches are, a tile drawn by one launch only. A sample keeps the minimum of its
+entries whatever the order they come in, so the buffer does not depend on the thread count. With
+a mesh's :func:`triangle_clusters`, clusters off screen, facing away (where flagged) or hidden
+behind what the clusters facing the eye drew are skipped (kernels/occlusion.py)."""
 
 from __future__ import annotations
 
@@ -131,18 +131,6 @@ def _chunks(n: int, parts: int):
     """(index, first, count) of up to ``parts`` contiguous non-empty ranges covering [0, n)."""
     step = max(1, math.ceil(n / parts))
     return [(k, first, min(step, n - first)) for k, first in enumerate(range(0, n, step))]
-
-
-def _tile_stride(tiles: int) -> int:
-    """The step between tiles taken one after the other (visibility_pipeline): about half the tile
-    count, coprime with it, so that threads taking tiles at the same time draw far-apart ones.
-    Neighbouring tiles' rows share pages, and the cores' prefetchers, fetching each other's lines,
-    slowed two threads drawing neighbours (interleaved development A/B, bench/frames.py's icosphere
-    scene at 1024² on 2 threads: a whole call 10.4 -> 9.0 ms)."""
-    stride = tiles // 2 + 1
-    while math.gcd(stride, tiles) != 1:
-        stride += 1
-    return stride % max(tiles, 1) or 1
 
 
 _kernels_loaded = False
@@ -301,7 +289,6 @@ class _Layout:
     tiles: int
     batch_size: int
     batch_stride: int
-    tile_stride: int
     screen: wp.array
     depth_weights: wp.array
     binned_face: wp.array
@@ -347,7 +334,6 @@ def _call_layout(scratch: dict, vertices: int, triangles: int, width: int, heigh
     sync = zeroed[2 * threads:counts_end]
     layout = _Layout(
         tiles_x=tiles_x, tiles=tiles, batch_size=batch_size, batch_stride=math.ceil(batches / threads),
-        tile_stride=_tile_stride(tiles),
         screen=_scratch_array(scratch, "screen", vertices, wp.vec2i),
         depth_weights=_scratch_array(scratch, "depth_weights", vertices, wp.float64),
         # each launch's list of binned triangles has room for all of them
@@ -358,7 +344,7 @@ def _call_layout(scratch: dict, vertices: int, triangles: int, width: int, heigh
         # written by the pipeline before it is read
         bin_total=_scratch_array(scratch, "bin_total", 1, wp.int64),
         busy_tiles=_scratch_array(scratch, "busy_tiles", tiles, wp.int32),
-        batch_ranges=_scratch_array(scratch, "batch_ranges", 2 * threads * RANGE_STRIDE, wp.int64),
+        batch_ranges=_scratch_array(scratch, "batch_ranges", 3 * threads * RANGE_STRIDE, wp.int64),
         cluster_rect=_scratch_array(scratch, "cluster_rect", cluster_count, wp.vec4i),
         cluster_nearest=_scratch_array(scratch, "cluster_nearest", cluster_count, wp.float64),
         zeroed=zeroed, zeroed_view=zeroed.numpy(), sync_view=sync.numpy(), binned_count=zeroed[:threads],
@@ -468,7 +454,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                                [k, threads, first_stage, int(stop_after_binning), _os_yield_address(), positions,
                                 indices, vertices, layout.screen, layout.depth_weights, cam, int(bool(orthographic)),
                                 samples, spp, MIN_VERTEX_SHARE, layout.batch_size, layout.batch_stride, triangles,
-                                layout.tiles_x, layout.tile_stride, cull_back_faces, layout.binned_count,
+                                layout.tiles_x, cull_back_faces, layout.binned_count,
                                 layout.binned_face, layout.binned_rect, layout.tile_counts, layout.bad_indices,
                                 layout.cursors, layout.bin_start, layout.bin_total, bins, layout.busy_tiles,
                                 *cluster_arrays, layout.cluster_rect, layout.cluster_nearest, sync, layout.batch_ranges,
