@@ -57,7 +57,7 @@ from .occlusion import (
     is_occluded,
     outside_view,
 )
-from .work_queue import add_atomically, reset_range, take_from_range, take_next_item_from
+from .work_queue import add_atomically, reset_range, take_next_from_ranges, take_next_item_from
 
 wp.set_module_options({"enable_backward": False})
 
@@ -1180,9 +1180,9 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     (all_done); then batches of batch_size triangles: launch k owns the range of batch_stride
     batches from k batch_stride (in ``batch_ranges``: a set of ranges per pass, one for the tiles)
     and takes them in order, then takes what is left of the others' ranges from their ends
-    (take_from_range), so that each draws a region of the mesh of its own, on screen mostly apart
-    from the others', and finds the buffer's lines there in its own core's cache (the batches of one
-    shared queue had each launch draw all over the mesh: 2 threads, 1024², development A/B,
+    (take_next_from_ranges), so that each draws a region of the mesh of its own, on screen mostly
+    apart from the others', and finds the buffer's lines there in its own core's cache (the batches
+    of one shared queue had each launch draw all over the mesh: 2 threads, 1024², development A/B,
     icosphere 3.8-3.9 -> 3.5 ms, bunny 4.2-4.8 -> 3.9-4.0, happy Buddha 17.4-17.9 -> 16.2-16.4):
     small triangles drawn into the buffer at once (atomically, as another launch may draw the same
     sample), the others that may cover a sample listed by the launch that drew them (their owner)
@@ -1269,19 +1269,17 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                     return
                 draw = DRAW_UNOCCLUDED
             # this launch's own range first, from its start; then the others', from their ends
-            owner = launch
-            while True:
-                batch = take_from_range(batch_ranges, k * launches + owner, owner == launch)
-                if batch < 0:
-                    owner = (owner + 1) % launches
-                    if owner == launch:
-                        break
-                    continue
+            # (the owner has a name of its own here and below: reassigning `owner`, a loop variable
+            # elsewhere in this kernel, from the tuple made Warp's compiled loops spin forever)
+            batch, batch_owner = take_next_from_ranges(batch_ranges, k * launches, launch, launches, launch)
+            while batch >= 0:
                 tally = tally + count_batch(draw, batch, launch, positions, indices, vertex_count, screen,
                                             depth_weights, proj, samples, spp, batch_size, triangles, tiles_x,
                                             cull_back_faces, binned_count, binned_face, binned_rect, tile_counts,
                                             bad_indices, cluster_lower, cluster_upper, cluster_axis,
                                             cluster_spread, cluster_rect, cluster_nearest, out)
+                batch, batch_owner = take_next_from_ranges(batch_ranges, k * launches, launch, launches,
+                                                           batch_owner)
         if draw != DRAW_ALL:
             add_atomically(sync, CLUSTERS_OFF_SCREEN, tally[0])
             add_atomically(sync, CLUSTERS_DEFERRED, tally[1])
@@ -1320,16 +1318,11 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     # (2 threads: ~60 us of the 1024 tiles' ~70 at 1024², where dense meshes bin almost nothing;
     # development); each launch draws its own band of them first, then takes the others' from
     # their ends, far from where their owners draw
-    owner = launch
-    while True:
-        k = take_from_range(batch_ranges, 2 * launches + owner, owner == launch)
-        if k < 0:
-            owner = (owner + 1) % launches
-            if owner == launch:
-                break
-            continue
-        rasterize_tile(busy_tiles[k], positions, indices, screen, depth_weights, binned_face, binned_rect, bin_start,
-                       bins, samples, spp, cam, proj, tiles_x, out)
+    listed, tile_owner = take_next_from_ranges(batch_ranges, 2 * launches, launch, launches, launch)
+    while listed >= 0:
+        rasterize_tile(busy_tiles[listed], positions, indices, screen, depth_weights, binned_face, binned_rect,
+                       bin_start, bins, samples, spp, cam, proj, tiles_x, out)
+        listed, tile_owner = take_next_from_ranges(batch_ranges, 2 * launches, launch, launches, tile_owner)
     # launch 0 returns once every launch is done drawing, so that the caller need not wait for the
     # pool threads' return to Python and their wake-up of it (~0.1 ms a call, development); the
     # launches that stop earlier all stop at the same stage, having drawn all they draw

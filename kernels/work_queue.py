@@ -61,3 +61,18 @@ def take_from_range(ranges: wp.array(dtype=wp.int64), index: int, from_start: bo
     atomically across threads (one compare-and-swap of its word, end << 32 | start); -1 if none
     is left."""
     ...
+
+
+@wp.func
+def take_next_from_ranges(ranges: wp.array(dtype=wp.int64), first: int, launch: int, launches: int, owner: int):
+    """(item, owner): the next item for ``launch`` of ranges first .. first + launches - 1, range
+    first + k owned by launch k: from the start of its own range while any is left, then from the
+    end of the others' in turn, ``owner`` being where the previous take found one (start with
+    ``launch``); item -1 once every range is empty."""
+    while True:
+        item = take_from_range(ranges, first + owner, owner == launch)
+        if item >= 0:
+            return item, owner
+        owner = (owner + 1) % launches
+        if owner == launch:
+            return -1, owner

@@ -8,7 +8,7 @@ import warp as wp
 import pbrwarp as pw
 from pbrwarp.kernels.sampling import multi_jittered_sample
 from pbrwarp.kernels.textures import TextureData, sample_texture
-from pbrwarp.kernels.work_queue import add_atomically, take_from_range
+from pbrwarp.kernels.work_queue import add_atomically, take_next_from_ranges
 
 import reference as ref
 
@@ -140,24 +140,19 @@ def test_reinhard_matches_definition():
 @wp.kernel(enable_backward=False)
 def take_every_item(launch: int, launches: int, ranges: wp.array(dtype=wp.int64), taken_by: wp.array(dtype=wp.int32),
                     times_taken: wp.array(dtype=wp.int32)):
-    # as visibility_pipeline takes its batches: its own range from the start, then the others' from their ends
-    owner = launch
-    while True:
-        item = take_from_range(ranges, owner, owner == launch)
-        if item < 0:
-            owner = (owner + 1) % launches
-            if owner == launch:
-                break
-            continue
+    item, owner = take_next_from_ranges(ranges, 0, launch, launches, launch)
+    while item >= 0:
         add_atomically(times_taken, item, 1)
         taken_by[item] = launch
+        item, owner = take_next_from_ranges(ranges, 0, launch, launches, owner)
 
 
 @pytest.mark.parametrize("launches", [1, 2, 3, 5])
 def test_ranges_hand_out_every_item_once_to_launches_running_at_once(launches):
-    """kernels/work_queue.py take_from_range: launches side by side on the thread pool, each taking
-    its own range's items from the start and the others' from the end, take every item exactly
-    once, however the ranges are sized (one empty here) and wherever the owner and the others meet."""
+    """kernels/work_queue.py take_next_from_ranges, as visibility_pipeline takes its batches and
+    tiles: launches side by side on the thread pool, each taking its own range's items from the
+    start and the others' from the end, take every item exactly once, however the ranges are
+    sized (one empty here) and wherever the owner and the others meet."""
     from pbrwarp.kernels.work_queue import RANGE_STRIDE, reset_range
     from pbrwarp.parallel import run_together
 
