@@ -1269,8 +1269,9 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                     return
                 draw = DRAW_UNOCCLUDED
             # this launch's own range first, from its start; then the others', from their ends
-            # (the owner has a name of its own here and below: reassigning `owner`, a loop variable
-            # elsewhere in this kernel, from the tuple made Warp's compiled loops spin forever)
+            # (the owner has a name of its own here and below: reusing `owner`, a for-loop variable
+            # elsewhere in this kernel, made these while loops spin forever on warp 1.19; cf.
+            # NVIDIA/warp#1534, a for-loop variable's name reused in a while loop)
             batch, batch_owner = take_next_from_ranges(batch_ranges, k * launches, launch, launches, launch)
             while batch >= 0:
                 tally = tally + count_batch(draw, batch, launch, positions, indices, vertex_count, screen,
