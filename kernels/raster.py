@@ -1228,8 +1228,9 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
                     sync[OCCLUSION_PASS] = 1
             batches = (triangles + batch_size - 1) / batch_size
             for k in range(2 * launches):  # each pass's batch ranges, one per launch
-                owner = k % launches
-                reset_range(batch_ranges, k, owner * batch_stride, wp.min((owner + 1) * batch_stride, batches))
+                range_owner = k % launches
+                reset_range(batch_ranges, k, range_owner * batch_stride,
+                            wp.min((range_owner + 1) * batch_stride, batches))
             done = 1
         # the buffer's rows cleared and the vertices projected in pieces taken from a queue: a
         # launch that starts late (a pool thread's wake-up) finds its share done by the others
@@ -1296,9 +1297,9 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
             if outcome == BINNED:
                 busy = bin_offsets(tile_counts, cursors, bin_start, bin_total, busy_tiles)
                 share = (busy + launches - 1) / launches
-                for owner in range(launches):  # the tiles' ranges, a band of the image each
-                    reset_range(batch_ranges, 2 * launches + owner, wp.min(owner * share, busy),
-                                wp.min((owner + 1) * share, busy))
+                for band in range(launches):  # the tiles' ranges, a band of the image each
+                    reset_range(batch_ranges, 2 * launches + band, wp.min(band * share, busy),
+                                wp.min((band + 1) * share, busy))
                 if bin_total[0] > wp.int64(bins.shape[0]):
                     outcome = BINS_TOO_SMALL
             sync[OUTCOME] = outcome
