@@ -370,8 +370,9 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     homogeneously (in float64, from their camera-space vertices; by casting each sample's ray when
     the eye lies in their plane). ``threads`` defaults to every core; the buffer does not depend on
     it. Its launches spin while they wait for each other, yielding their core every few tens of
-    microseconds, so more threads than cores cost little (development measurement, bunny at
-    512² on 2 cores: 6.4, 7.0 and 8.8 ms on 2, 3 and 8 threads; 20 and 64 ms on 3 and 8 without
+    microseconds, so more threads than cores cost little (development measurement at e379479,
+    bunny at 512² on a 2-core AMD EPYC, medians over three runs of interleaved calls: 4.3-4.6,
+    2.7-4.0, 2.5-3.9 and 4.6-6.3 ms on 1, 2, 3 and 8 threads; 24 and 74 ms on 3 and 8 without
     the yields). ``out``, a buffer of that shape and dtype on the CPU, is filled
     and returned instead of a new one: reusing it saves the page faults of fresh memory, which
     take a third of a 2048² frame and do not scale across threads. ``timings``, if a dict,
