@@ -8,7 +8,7 @@ import functools
 import warp as wp
 
 from .ambient import ambient_for
-from .brdf import brdf_for
+from .brdf import albedo_coupled_brdf_for, brdf_for
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
 from .light_buffer import (LightBuffers, UNDECIDED, OCCLUDED, SHADOW_CACHE_LIGHTS, ShadowCache, light_buffer_occlusion,
@@ -34,6 +34,12 @@ def render_kernel(features):
     f = features
     textured = f.textures
     brdf = brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf))
+    coupled = albedo_coupled_brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf))
+    brdf_scaled, diffuse_share_scale = coupled or (None, None)
+    # the albedo coupling's normalization depends on the material's inputs alone: where no texture
+    # or vertex colour varies them it is computed once per material met, not per light and pixel
+    scale_per_material = bool(coupled) and not (f.base_color_texture or f.metallic_roughness_texture
+                                                or f.vertex_colors)
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
     lit = f.point_lights or f.directional_lights or f.spot_lights
     ibl = f.environment
@@ -53,8 +59,11 @@ def render_kernel(features):
     @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
               dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3,
-              n: wp.vec3, seed: int, stream: int, cache: ShadowCache):
-        """(radiance leaving the hit towards the view, the shadow cache updated)."""
+              n: wp.vec3, seed: int, stream: int, cache: ShadowCache, scale: wp.vec3, scale_material: int):
+        """(radiance leaving the hit towards the view, the shadow cache, the albedo coupling's
+        normalization ``scale`` (diffuse_share_scale) and the material it was computed for,
+        ``scale_material``, -1 for none: kept from pixel to pixel where it depends on the material
+        alone)."""
         radiance = wp.vec3(0.0)
         if wp.static(f.emission):
             radiance = mat.emissive
@@ -100,7 +109,16 @@ def render_kernel(features):
                     unshadowed = shadow_map_visibility(maps, i, scene.lights[i].position, h.p, h.ng)
                     if unshadowed == 0.0:
                         continue
-                fr = brdf(n, view, ls.to_light, base, metallic, roughness, mat.specular, mat.ior_eta, mat.ior_kappa)
+                fr = wp.vec3(0.0)
+                if wp.static(bool(coupled)):
+                    if scale_material != h.material:
+                        scale = diffuse_share_scale(base, metallic, roughness, mat.specular)
+                        scale_material = h.material
+                    fr = brdf_scaled(n, view, ls.to_light, base, metallic, roughness, mat.specular, mat.ior_eta,
+                                     mat.ior_kappa, scale)
+                else:
+                    fr = brdf(n, view, ls.to_light, base, metallic, roughness, mat.specular, mat.ior_eta,
+                              mat.ior_kappa)
                 radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
             if wp.static(bool(ibl)):
                 from_environment = ambient(scene, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
@@ -110,7 +128,9 @@ def render_kernel(features):
                         occlusion = texture_or_one(scene, mat.occlusion_texture, uv)[0]
                         from_environment = from_environment * (1.0 + mat.occlusion_strength * (occlusion - 1.0))
                 radiance = radiance + from_environment
-        return radiance, cache
+        if wp.static(not scale_per_material):
+            scale_material = -1  # the next hit's inputs may differ
+        return radiance, cache, scale, scale_material
 
     # inlined: a call would copy the scene's and the light buffers' structs (~1 KB) per shadow ray
     @wp.func(inline=True)
@@ -209,6 +229,8 @@ def render_kernel(features):
     ):
         """Row py of the image, sample by sample."""
         cache = ShadowCache(-1)
+        scale = wp.vec3(1.0)
+        scale_material = int(-1)
         for px in range(cam.width):
             pixel_seed = seed + py * cam.width + px
             radiance = wp.vec3(0.0)
@@ -240,8 +262,9 @@ def render_kernel(features):
                     n = wp.vec3(0.0)
                     if wp.static(shaded or f.aovs):
                         n = shading_normal(scene, h, mat, uv)
-                    shaded_radiance, cache = shade(scene, maps, buffers, env, dfg, h, mat, uv, -d, n, pixel_seed, s,
-                                                   cache)
+                    shaded_radiance, cache, scale, scale_material = shade(scene, maps, buffers, env, dfg, h, mat, uv,
+                                                                          -d, n, pixel_seed, s, cache, scale,
+                                                                          scale_material)
                     radiance = radiance + shaded_radiance
                     hits = hits + 1
                     if wp.static(f.aovs):

@@ -115,6 +115,51 @@ def test_albedo_coupling_conserves_white_dielectric_energy():
                 assert abs(est - 1.0) <= 0.01 + 4 * err, (energy, r, c, est)
 
 
+def coupled_evaluator(scaled_brdf, diffuse_share_scale, brdf):
+    @wp.kernel(enable_backward=False, module="unique")
+    def evaluate(v: wp.array(dtype=wp.vec3), l: wp.array(dtype=wp.vec3), base: wp.array(dtype=wp.vec3),
+                 params: wp.array(dtype=wp.vec3), given: wp.array(dtype=wp.vec3), whole: wp.array(dtype=wp.vec3),
+                 scales: wp.array(dtype=wp.vec3)):
+        i = wp.tid()
+        n = wp.vec3(0.0, 0.0, 1.0)
+        p = params[i]
+        scale = diffuse_share_scale(base[i], p[0], p[1], p[2])
+        scales[i] = scale
+        given[i] = scaled_brdf(n, v[i], l[i], base[i], p[0], p[1], p[2], wp.vec3(0.0), wp.vec3(0.0), scale)
+        whole[i] = brdf(n, v[i], l[i], base[i], p[0], p[1], p[2])
+
+    return evaluate
+
+
+def test_the_albedo_coupling_normalization_given_once_is_the_brdf_itself():
+    """Renders compute the coupling's 1 / (1 - E_avg) once per material (albedo_coupled_brdf_for):
+    given it, the BRDF is brdf_for's bit for bit, for every material; it is 1 where the specular
+    lobe reflects nothing (f0 = f90 = 0: specular 0, not metallic) and above 1 elsewhere."""
+    rng = np.random.default_rng(5)
+    count = 2000
+
+    def unit(rows):
+        return (rows / np.linalg.norm(rows, axis=1, keepdims=True)).astype(np.float32)
+
+    v = unit(rng.normal(size=(count, 3)) * [1, 1, 0] + [0, 0, 1] * rng.uniform(0.01, 1, (count, 1)))
+    l = unit(rng.normal(size=(count, 3)) * [1, 1, 0] + [0, 0, 1] * rng.uniform(0.01, 1, (count, 1)))
+    base = rng.uniform(0, 1, (count, 3)).astype(np.float32)
+    params = np.column_stack([rng.choice([0.0, 0.3, 1.0], count), rng.uniform(0, 1, count),
+                              rng.choice([0.0, 0.5, 1.0], count)]).astype(np.float32)  # metallic, roughness, specular
+    for rungs in ({}, {"energy": "multiscatter"}, {"geometry": "smith_correlated", "diffuse": "burley"}):
+        scaled_brdf, diffuse_share_scale = kb.albedo_coupled_brdf_for(True, True, **rungs)
+        out = [wp.empty(count, dtype=wp.vec3) for _ in range(3)]
+        wp.launch(coupled_evaluator(scaled_brdf, diffuse_share_scale, kb.brdf_for(True, True, **rungs)), dim=count,
+                  inputs=[wp.array(a, dtype=wp.vec3) for a in (v, l, base, params)], outputs=out)
+        given, whole, scales = (a.numpy() for a in out)
+        assert np.array_equal(given, whole), rungs
+        reflects_nothing = (params[:, 0] == 0) & (params[:, 2] == 0)
+        assert np.all(scales[reflects_nothing] == 1.0) and np.all(scales[~reflects_nothing] > 1.0), rungs
+    for other in ({"coupling": "fresnel"}, {"coupling": "none"}, {"model": "phong"}):
+        assert kb.albedo_coupled_brdf_for(True, True, **other) is None
+    assert kb.albedo_coupled_brdf_for(False, True) is None and kb.albedo_coupled_brdf_for(True, False) is None
+
+
 def test_seeds_fresnel_coupling_creates_energy_at_grazing_views():
     """Why the default is not the seeds' 1 - F(v.h) weight: it ignores the light the specular lobe
     took at other half vectors, so smooth white dielectrics at grazing views exceed 1."""
