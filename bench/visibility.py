@@ -143,15 +143,19 @@ def bench_case(label, mesh, size, repeats, threads_all):
     for key, seconds in times.items():
         row[key] = 1e3 * statistics.median(seconds)
 
-    def paired_speedup(one_thread, all_threads):
-        # the median of each round's ratio: both calls come within ~0.1 s of each other, so a
-        # drift of this shared machine's speed between rounds cancels out
-        return statistics.median(a / b for a, b in zip(times[one_thread], times[all_threads]))
+    def round_speedups(one_thread, all_threads):
+        # each round's ratio: both calls come within ~0.1 s of each other, so a drift of this
+        # shared machine's speed between rounds cancels out
+        return [a / b for a, b in zip(times[one_thread], times[all_threads])]
 
-    row["raster_speedup"] = paired_speedup("raster_ms_1t", f"raster_ms_{threads_all}t")
-    row["raster_speedup_after_one_thread"] = paired_speedup("raster_ms_1t",
-                                                            f"raster_after_one_thread_ms_{threads_all}t")
-    row["divisible_speedup"] = paired_speedup("divisible_ms_1t", f"divisible_ms_{threads_all}t")
+    for key, one_thread, all_threads in (
+            ("raster_speedup", "raster_ms_1t", f"raster_ms_{threads_all}t"),
+            ("raster_speedup_after_one_thread", "raster_ms_1t", f"raster_after_one_thread_ms_{threads_all}t"),
+            ("divisible_speedup", "divisible_ms_1t", f"divisible_ms_{threads_all}t")):
+        ratios = round_speedups(one_thread, all_threads)
+        row[key] = statistics.median(ratios)
+        quartiles = statistics.quantiles(ratios, n=4)
+        row[f"{key}_quartiles"] = [quartiles[0], quartiles[2]]
     row["binning_ms"] = 1e3 * statistics.median(t["binning"] for t in splits)
     row["rasterization_ms"] = 1e3 * statistics.median(t["raster"] for t in splits)
 
@@ -207,10 +211,15 @@ def fit_cost_models(rows, threads_all):
     return model
 
 
+def spread(quartiles):
+    return f"[{quartiles[0]:.2f}-{quartiles[1]:.2f}]"
+
+
 def markdown(rows, model, threads_all):
     t = threads_all
     lines = [
-        f"| mesh | triangles | size | raster ms 1t / {t}t | speedup (right after a 1t call) | divisible kernel's speedup | "
+        f"| mesh | triangles | size | raster ms 1t / {t}t | speedup [middle half of rounds] (right after a 1t call) | "
+        f"divisible kernel's speedup [middle half] | "
         f"{t}t with a new buffer | binning / rasterization ms {t}t | "
         f"without clusters ms {t}t | back faces culled ms {t}t | ray cast ms {t}t | Embree ms | "
         f"raster / ray cast / Embree Msamples/s | raster ÷ Embree (culled) | clusters occluded (culled: facing away + occluded) | "
@@ -224,7 +233,9 @@ def markdown(rows, model, threads_all):
                  else "n/a")
         lines.append(
             f"| {r['mesh']} | {r['triangles']:,} | {r['size']}² | {r['raster_ms_1t']:.1f} / {r[f'raster_ms_{t}t']:.1f} | "
-            f"{r['raster_speedup']:.2f}x ({r['raster_speedup_after_one_thread']:.2f}x) | {r['divisible_speedup']:.2f}x | "
+            f"{r['raster_speedup']:.2f}x {spread(r['raster_speedup_quartiles'])} "
+            f"({r['raster_speedup_after_one_thread']:.2f}x) | "
+            f"{r['divisible_speedup']:.2f}x {spread(r['divisible_speedup_quartiles'])} | "
             f"{r[f'raster_new_buffer_ms_{t}t']:.1f} | {r['binning_ms']:.1f} / {r['rasterization_ms']:.1f} | "
             f"{r[f'raster_without_clusters_ms_{t}t']:.1f} | "
             f"{r[f'raster_culled_ms_{t}t']:.1f} | {r[f'raycast_ms_{t}t']:.1f} | {embree_ms} | "
@@ -248,7 +259,8 @@ def markdown(rows, model, threads_all):
         "variants and the divisible kernel in turn, round after round. Divisible kernel: a compute-only Warp "
         "kernel as long on one thread as the row's raster, split in equal parts over the threads through the "
         "same pool: the speedup a perfectly divisible kernel of that length gets on this machine. Speedups are "
-        "medians of each round's ratio (its one-thread time over its all-thread time). Clusters occluded: the fraction culled as hidden; in brackets, with back faces culled, "
+        "medians of each round's ratio (its one-thread time over its all-thread time); in square brackets, the "
+        "lower and upper quartiles of those ratios, how far they scatter on this machine. Clusters occluded: the fraction culled as hidden; in brackets, with back faces culled, "
         "those culled as facing away and as hidden. Back faces culled: every "
         "triangle flagged in cull_back_faces, as pw.render flags single-sided meshes and closed ones seen from "
         "outside (the icospheres are closed; the others stand for single-sided meshes). Ray cast: "
