@@ -81,6 +81,16 @@ def open3d_scene(mesh):
     return scene
 
 
+def on_core(core, fn):
+    """fn() with the calling thread held to CPU ``core``, then free again."""
+    allowed = os.sched_getaffinity(0)  # pid 0: the calling thread
+    os.sched_setaffinity(0, {core})
+    try:
+        return fn()
+    finally:
+        os.sched_setaffinity(0, allowed)
+
+
 def bench_case(label, mesh, size, repeats, threads_all):
     scene = pw.Scene()
     scene.add_mesh(mesh, pw.Material())
@@ -113,8 +123,11 @@ def bench_case(label, mesh, size, repeats, threads_all):
              f"raster_culled_ms_{threads_all}t": (threads_all, buffer, every_face, geometry.clusters),
              f"raster_without_clusters_ms_{threads_all}t": (threads_all, buffer, None, None),
              f"divisible_ms_{threads_all}t": None}
+    # one thread on each core in turn: the cores of a virtual machine need not run at the same pace
+    # (the host may share one's physical core), which bounds what two threads can gain
+    cores = sorted(os.sched_getaffinity(0))[:threads_all] if hasattr(os, "sched_setaffinity") else []
     times = {key: [] for key in ["raster_ms_1t", f"raster_after_one_thread_ms_{threads_all}t", "divisible_ms_1t",
-                                 *awake]}
+                                 *awake, *(f"raster_ms_1t_core{core}" for core in cores)]}
     splits = []
 
     def timed(key, fn):
@@ -135,6 +148,8 @@ def bench_case(label, mesh, size, repeats, threads_all):
             else:
                 threads, out, cull, clusters = awake[key]
                 timed(key, lambda: raster(threads, out, None, cull, clusters))
+        for core in cores:
+            timed(f"raster_ms_1t_core{core}", lambda: on_core(core, lambda: raster(1)))
         # the split in a call of its own, as timing the parts apart stops the launches between them
         split = {}
         raster(threads_all, buffer, split)
@@ -142,6 +157,7 @@ def bench_case(label, mesh, size, repeats, threads_all):
             splits.append(split)
     for key, seconds in times.items():
         row[key] = 1e3 * statistics.median(seconds)
+    row["raster_ms_1t_per_core"] = [row.pop(f"raster_ms_1t_core{core}") for core in cores]
 
     def round_speedups(one_thread, all_threads):
         # each round's ratio: both calls come within ~0.1 s of each other, so a drift of this
@@ -186,7 +202,8 @@ def bench_case(label, mesh, size, repeats, threads_all):
         row["embree_ms"] = 1e3 * median_time(lambda: o3d.cast_rays(rays), repeats)
 
     for key in [k for k in row if k.endswith("_ms") or "_ms_" in k]:
-        if key not in ("binning_ms", "rasterization_ms") and not key.startswith("divisible"):
+        if (key not in ("binning_ms", "rasterization_ms", "raster_ms_1t_per_core")
+                and not key.startswith("divisible")):
             row[key.replace("_ms", "_msamples_per_s")] = samples / row[key] / 1e3
     if "embree_ms" in row:
         row["raster_to_embree"] = row["embree_ms"] / row[f"raster_ms_{threads_all}t"]
@@ -219,12 +236,12 @@ def markdown(rows, model, threads_all):
     t = threads_all
     lines = [
         f"| mesh | triangles | size | raster ms 1t / {t}t | speedup [middle half of rounds] (right after a 1t call) | "
-        f"divisible kernel's speedup [middle half] | "
+        f"divisible kernel's speedup [middle half] | raster ms 1t on each core | "
         f"{t}t with a new buffer | binning / rasterization ms {t}t | "
         f"without clusters ms {t}t | back faces culled ms {t}t | ray cast ms {t}t | Embree ms | "
         f"raster / ray cast / Embree Msamples/s | raster ÷ Embree (culled) | clusters occluded (culled: facing away + occluded) | "
         f"model raster / ray cast ms | coverage | same triangle (culled) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         embree_ms = f"{r['embree_ms']:.1f}" if "embree_ms" in r else "n/a"
@@ -236,6 +253,7 @@ def markdown(rows, model, threads_all):
             f"{r['raster_speedup']:.2f}x {spread(r['raster_speedup_quartiles'])} "
             f"({r['raster_speedup_after_one_thread']:.2f}x) | "
             f"{r['divisible_speedup']:.2f}x {spread(r['divisible_speedup_quartiles'])} | "
+            f"{' / '.join(f'{ms:.1f}' for ms in r['raster_ms_1t_per_core']) or 'n/a'} | "
             f"{r[f'raster_new_buffer_ms_{t}t']:.1f} | {r['binning_ms']:.1f} / {r['rasterization_ms']:.1f} | "
             f"{r[f'raster_without_clusters_ms_{t}t']:.1f} | "
             f"{r[f'raster_culled_ms_{t}t']:.1f} | {r[f'raycast_ms_{t}t']:.1f} | {embree_ms} | "
@@ -260,7 +278,10 @@ def markdown(rows, model, threads_all):
         "kernel as long on one thread as the row's raster, split in equal parts over the threads through the "
         "same pool: the speedup a perfectly divisible kernel of that length gets on this machine. Speedups are "
         "medians of each round's ratio (its one-thread time over its all-thread time); in square brackets, the "
-        "lower and upper quartiles of those ratios, how far they scatter on this machine. Clusters occluded: the fraction culled as hidden; in brackets, with back faces culled, "
+        "lower and upper quartiles of those ratios, how far they scatter on this machine. One thread on each "
+        "core: the one-thread call with the calling thread held to each core in turn, medians; where one core "
+        "runs slower (a virtual machine's host may share its physical core), two threads sharing the work as "
+        "it comes gain at most 1 + t_fast / t_slow over the faster core's time t_fast. Clusters occluded: the fraction culled as hidden; in brackets, with back faces culled, "
         "those culled as facing away and as hidden. Back faces culled: every "
         "triangle flagged in cull_back_faces, as pw.render flags single-sided meshes and closed ones seen from "
         "outside (the icospheres are closed; the others stand for single-sided meshes). Ray cast: "
