@@ -481,7 +481,7 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
     def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
              specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0)) -> wp.vec3:
         if wp.dot(n, l) <= 0.0:
-            return wp.vec3(0.0)
+            return wp.vec3(0.0)  # as brdf_scaled does, but before the scale's table lookup
         return brdf_scaled(n, v, l, base_color, metallic, roughness, specular, eta, kappa,
                            diffuse_share_scale(base_color, metallic, roughness, specular))
 
