@@ -185,23 +185,21 @@ def render_kernel(features):
         return n
 
     @wp.func
-    def primary_hit(scene: SceneData, vbuffer: wp.array2d(dtype=wp.uint64), py: int, column: int, origin: wp.vec3,
-                    d: wp.vec3):
-        """(face, u, v) of the nearest surface along a camera ray, face -1 for none: from the
-        visibility buffer, the hit recomputed by the ray caster's own ray-triangle test, or by a BVH
-        query."""
+    def primary_hit(scene: SceneData, seen: int, origin: wp.vec3, d: wp.vec3):
+        """(face, u, v) of the nearest surface along a camera ray, face -1 for none: the triangle
+        ``seen`` in the visibility buffer with the hit recomputed by the ray caster's own
+        ray-triangle test, or a BVH query."""
         if wp.static(f.visibility == "raster"):
-            face = visible_triangle(vbuffer[py, column])
-            if face < 0:
+            if seen < 0:
                 return -1, 0.0, 0.0
-            c = triangle_corners(scene.indices, face)
+            c = triangle_corners(scene.indices, seen)
             p0 = scene.positions[c[0]]
             p1 = scene.positions[c[1]]
             p2 = scene.positions[c[2]]
             # barycentrics of the ray's crossing of the triangle's plane even where the raster's
             # and the ray test's verdicts on an edge sample differ
             hit, t, u, v = ray_triangle_intersection(origin, d, p0, p1, p2)
-            return face, u, v
+            return seen, u, v
         q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
         if not q.result:
             return -1, 0.0, 0.0
@@ -238,13 +236,19 @@ def render_kernel(features):
             hits = int(0)
             depth = float(RAY_FAR)
             for s in range(spp):
+                seen = int(-1)
+                if wp.static(f.visibility == "raster"):
+                    seen = visible_triangle(vbuffer[py, px * spp + s])
+                    if wp.static(not f.environment_background):
+                        if seen < 0:
+                            continue  # the background's colour needs no camera ray
                 offset = wp.vec2(0.5, 0.5)
                 if wp.static(f.supersampling):
                     offset = multi_jittered_sample(s, grid_m, grid_n, pixel_seed)
                 d = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1])
                 origin = cam.eye
                 hits_before = hits
-                face, u, v = primary_hit(scene, vbuffer, py, px * spp + s, origin, d)
+                face, u, v = primary_hit(scene, seen, origin, d)
                 for _ in range(MAX_PASS_THROUGH):
                     if face < 0:
                         break

@@ -121,3 +121,27 @@ def test_culled_back_faces_render_as_rays_see_them():
         cam = pw.Camera.look_at(eye=eye, target=(0.0, 0.0, 0.0), fov_y=60.0)
         raster, _ = assert_same_image_where_the_paths_agree(scene, cam, (64, 48), 1)
         assert raster.alpha.mean() > 0.1
+
+
+@pytest.mark.parametrize("spp", [1, 4])
+def test_samples_the_raster_finds_empty_show_the_background_as_ray_casting_does(spp):
+    """The raster path computes no camera ray for a sample its visibility buffer finds empty; its
+    pixel still holds the background (alpha 0, depth inf, normal 0), and a pixel partly covered
+    mixes it in by coverage, exactly as the ray caster's."""
+    scene = pw.Scene()
+    scene.add_mesh(trimesh.creation.icosphere(subdivisions=3), pw.Material(base_color=(0.8, 0.6, 0.4)))
+    scene.add_light(pw.PointLight(position=(2.0, 3.0, 2.0), intensity=40.0))
+    cam = pw.Camera.look_at(eye=(0.0, 0.0, 4.0), target=(0.0, 0.0, 0.0))
+    background = (0.2, 0.4, 0.6)
+    frames = [render_checked(scene, cam, size=(40, 30), spp=spp, background=background, visibility=mode)
+              for mode in ("raster", "raycast")]
+    raster, raycast = frames
+    empty = (raster.alpha == 0.0) & (raycast.alpha == 0.0)
+    assert 0.3 < empty.mean() < 0.9
+    np.testing.assert_array_equal(raster.rgb[empty], np.broadcast_to(np.float32(background), raster.rgb[empty].shape))
+    assert np.all(np.isinf(raster.depth[empty])) and np.all(raster.normal[empty] == 0.0)
+    covered_alike = raster.alpha == raycast.alpha
+    assert covered_alike.mean() >= 0.99
+    if spp > 1:
+        assert np.any((raster.alpha > 0.0) & (raster.alpha < 1.0))  # partly covered pixels are compared too
+    np.testing.assert_allclose(raster.rgb[covered_alike], raycast.rgb[covered_alike], rtol=1e-6, atol=1e-7)
