@@ -235,7 +235,13 @@ def render_kernel(features):
             normal_sum = wp.vec3(0.0)
             hits = int(0)
             depth = float(RAY_FAR)
-            for s in range(spp):
+            samples = spp
+            if wp.static(not f.supersampling):
+                # spp is 1: a constant count lets the compiler drop the loop, which it would
+                # otherwise leave only after hoisting the camera ray (the same for every sample)
+                # above the empty-sample test
+                samples = 1
+            for s in range(samples):
                 seen = int(-1)
                 if wp.static(f.visibility == "raster"):
                     seen = visible_triangle(vbuffer[py, px * spp + s])
