@@ -14,9 +14,9 @@ from scenes import render_checked
 from test_specialize import scenes
 
 
-def assert_same_image_where_the_paths_agree(scene, cam, size, spp):
-    raster = render_checked(scene, cam, size=size, spp=spp, visibility="raster")
-    raycast = render_checked(scene, cam, size=size, spp=spp, visibility="raycast")
+def assert_same_image_where_the_paths_agree(scene, cam, size, spp, **options):
+    raster = render_checked(scene, cam, size=size, spp=spp, visibility="raster", **options)
+    raycast = render_checked(scene, cam, size=size, spp=spp, visibility="raycast", **options)
     differs = ~np.all(np.isclose(raster.rgb, raycast.rgb, rtol=1e-6, atol=1e-30), axis=-1)
     # a differing pixel is one where a sample's nearest triangle is a tie or lies on an edge,
     # which the two paths may resolve differently: never more than a sliver of the image
@@ -133,15 +133,12 @@ def test_samples_the_raster_finds_empty_show_the_background_as_ray_casting_does(
     scene.add_light(pw.PointLight(position=(2.0, 3.0, 2.0), intensity=40.0))
     cam = pw.Camera.look_at(eye=(0.0, 0.0, 4.0), target=(0.0, 0.0, 0.0))
     background = (0.2, 0.4, 0.6)
-    frames = [render_checked(scene, cam, size=(40, 30), spp=spp, background=background, visibility=mode)
-              for mode in ("raster", "raycast")]
-    raster, raycast = frames
+    raster, raycast = assert_same_image_where_the_paths_agree(scene, cam, (40, 30), spp, background=background)
     empty = (raster.alpha == 0.0) & (raycast.alpha == 0.0)
     assert 0.3 < empty.mean() < 0.9
     np.testing.assert_array_equal(raster.rgb[empty], np.broadcast_to(np.float32(background), raster.rgb[empty].shape))
     assert np.all(np.isinf(raster.depth[empty])) and np.all(raster.normal[empty] == 0.0)
     covered_alike = raster.alpha == raycast.alpha
-    assert covered_alike.mean() >= 0.99
     if spp > 1:
         assert np.any((raster.alpha > 0.0) & (raster.alpha < 1.0))  # partly covered pixels are compared too
     np.testing.assert_allclose(raster.rgb[covered_alike], raycast.rgb[covered_alike], rtol=1e-6, atol=1e-7)
