@@ -945,7 +945,9 @@ OCCLUSION_PASS = wp.constant(12)
 QUEUE_START = wp.constant(13)
 # the launches done, which launch 0 waits for before it returns
 FINISHED = wp.constant(14)
-SYNC_SLOTS = 15
+# the launches stopping after binning, which launch 0 waits for likewise
+STOPPED_AFTER_BINNING = wp.constant(15)
+SYNC_SLOTS = 16
 # Pieces of the first stage per launch.
 START_PIECES_PER_LAUNCH = wp.constant(8)
 # Outcomes of binning: drawn (or drawing), an index out of range (nothing read through it), or
@@ -1207,10 +1209,12 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
     back faces, triangles off screen) takes more. The projection is cam's (camera_projection,
     parallel if ``orthographic``); a camera without usable axes draws nothing, its OUTCOME
     BAD_CAMERA. Launch 0 returns only once every launch is done (the FINISHED count), so that the
-    buffer is complete when it has (a call stopped after binning counts none); the others once
-    released[0] has reached ``epoch`` too (wait_for_release). ``sync`` must be zeroed before a
-    call (and its FILL barrier, queues and outcome before resuming there); ``os_yield``
-    is all_arrived's.
+    buffer is complete when it has, the others once released[0] has reached ``epoch`` too
+    (wait_for_release); a call that stops after binning, only once every launch has left the
+    barrier before it (the STOPPED_AFTER_BINNING count), as the caller may zero ``sync`` for its
+    next call at once: a launch still waiting there would never see its count reached. ``sync``
+    must be zeroed before a call (and its FILL barrier, queues and outcome before resuming
+    there); ``os_yield`` is all_arrived's.
     """
     # each launch derives the same projection (computing it costs less than packing it in Python)
     proj = camera_projection(cam, orthographic)
@@ -1306,6 +1310,8 @@ def visibility_pipeline(launch: int, launches: int, first_stage: int, stop_after
         if not all_arrived(sync, BARRIER_OFFSETS, launches, ABORTED, SPINS_BEFORE_YIELD, os_yield):
             return
         if sync[OUTCOME] != BINNED or stop_after_binning != 0:
+            all_done(sync, STOPPED_AFTER_BINNING, 1, wp.where(launch == 0, launches, 0), ABORTED, SPINS_BEFORE_YIELD,
+                     os_yield)
             return
     owner = take_next_item_from(sync, QUEUE_FILL)
     while owner < binned_count.shape[0]:
