@@ -3,6 +3,7 @@ per sample but for depth ties and samples on edges, no cracks, no double coverag
 the camera plane and the guard band, the ray caster's sample positions, any thread count."""
 
 import math
+import os
 import subprocess
 import sys
 import textwrap
@@ -775,35 +776,34 @@ def test_bad_input_is_rejected_before_warp():
         visibility_buffer(geom.positions, geom.indices, cam, threads=2**31)
 
 
-
 def test_calls_stopping_after_binning_leave_no_launch_waiting_for_the_next():
     """A call that stops after binning (an index out of range, or timings taken apart) returns only
     once every launch has left the kernel's barriers: the next call zeroes their counters, and
     a launch still waiting at one would spin forever, hanging that call (before the fix, 4
     threads on 2 cores hung within 50 such calls). Run in a process of its own, so that a
     regression fails here on the timeout rather than hanging the suite."""
-    script = textwrap.dedent("""
+    script = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r})
         import numpy as np
         import warp as wp
         import pbrwarp as pw
         from pbrwarp.raster import decode, visibility_buffer
-        from pbrwarp.render import _camera_data
+        from test_raster import head_on, mesh_geometry
 
         wp.config.quiet = True
-        cam = _camera_data(pw.Camera(eye=(0.0, 0.0, 0.0), forward=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0),
-                                     fov_y=90.0), 64, 64)
-        positions = wp.array(np.array([(-1, -1, -1), (1, -1, -1), (-1, 1, -1)], np.float32), dtype=wp.vec3)
-        good = wp.array(np.array([0, 1, 2], np.int32), dtype=wp.int32)
+        cam = head_on()
+        geom = mesh_geometry([(-1, -1, -1), (1, -1, -1), (-1, 1, -1)], [[0, 1, 2]])
         bad = wp.array(np.array([0, 1, 3], np.int32), dtype=wp.int32)
         for _ in range(300):
             try:
-                visibility_buffer(positions, bad, cam, threads=4)
+                visibility_buffer(geom.positions, bad, cam, threads=4)
             except pw.InputError:
                 pass
             else:
                 raise SystemExit("an index out of range was accepted")
-            visibility_buffer(positions, good, cam, threads=4, timings={})
-        ids, _ = decode(visibility_buffer(positions, good, cam, threads=4))
+            visibility_buffer(geom.positions, geom.indices, cam, threads=4, timings={{}})
+        ids, _ = decode(visibility_buffer(geom.positions, geom.indices, cam, threads=4))
         # the lower left half: pixel centres with x + y < 0, i.e. column < row (the diagonal is
         # the edge, where the fill rule decides)
         column, row = np.meshgrid(np.arange(64), np.arange(64))
@@ -813,6 +813,7 @@ def test_calls_stopping_after_binning_leave_no_launch_waiting_for_the_next():
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]
     assert run.stdout.split()[-1:] == ["done"], run.stdout[-2000:]
+
 
 @wp.kernel(enable_backward=False)
 def busy_masks(indices: wp.array(dtype=wp.int32), screen: wp.array(dtype=wp.vec2i), vertex_count: int, spp: int,
