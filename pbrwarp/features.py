@@ -175,8 +175,9 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     else:
         decisions.append(Decision("shadows", "rays", f"shadow rays: {len(scene.lights)} per hit, against "
                                   f"{scene.triangle_count:,} triangles, through each light's light buffer "
-                                  f"(the triangles seen in each of {light_buffers.RESOLUTION}² directions per view; "
-                                  "rays leaving a triangle, or its interior, marked clear of the light skip it)"))
+                                  f"(the triangles seen in each of {light_buffers.scene_resolution(scene)}² "
+                                  "directions per view; rays leaving a triangle, or its interior, marked clear of the "
+                                  "light skip it)"))
     environment = scene.environment
     if environment is None:
         add("environment", False, "no environment lighting: scene.environment is None")

@@ -10,6 +10,7 @@ but for the shadows on it)."""
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 import warp as wp
@@ -23,9 +24,17 @@ from .shadow_maps import light_views, light_geometry
 from pbrwarp.kernels import light_buffer as lb
 from pbrwarp.kernels.loading import load_for_cpu
 
-# Cells per side of each view: 512 keeps the lists of an 80k-triangle sphere in a 90-degree cube
-# face at a few triangles (bench/frames.py).
+# Cells per side of each view: RESOLUTION, which keeps the lists of an 80k-triangle sphere in a
+# 90-degree cube face at a few triangles (bench/frames.py), for scenes of up to
+# RESOLUTION_TRIANGLES triangles. A denser scene's cells would list many more, and a shadow ray
+# tests the triangles its cell lists one by one: its views get finer, their side growing with the
+# square root of the triangle count (about as many cells per triangle) in steps of
+# RESOLUTION_STEP, within MAX_CELLS cells over all its views (8 bytes each while building, 4
+# kept). bench/light_buffer_resolution.py measures the choice.
 RESOLUTION = 512
+RESOLUTION_TRIANGLES = 100_000
+RESOLUTION_STEP = 128
+MAX_CELLS = 1 << 24
 # Light buffers are not built for a light closer than this fraction of the scene's radius to a
 # triangle: its shadow rays would span many cells near the light; they walk the BVH instead.
 MIN_CLEARANCE_RADII = 1.0e-4
@@ -84,6 +93,25 @@ def closed_faces(scene, gpu) -> list[wp.array]:
     return _per_light_face_flags(scene, gpu, "closed", closed_seen_from)
 
 
+def resolution(triangles: int, views: int) -> int:
+    """Cells per side of each light-buffer view of a scene with this many triangles and views
+    (over all its lights): RESOLUTION up to about RESOLUTION_TRIANGLES triangles, then growing
+    with the square root of the count, to the nearest multiple of RESOLUTION_STEP, and never so
+    large that the views hold over MAX_CELLS cells between them (unless RESOLUTION does)."""
+    wanted = RESOLUTION * math.sqrt(max(triangles, 1) / RESOLUTION_TRIANGLES)
+    wanted = RESOLUTION_STEP * round(wanted / RESOLUTION_STEP)
+    within_budget = RESOLUTION_STEP * math.floor(math.sqrt(MAX_CELLS / max(views, 1)) / RESOLUTION_STEP)
+    return max(RESOLUTION, min(wanted, within_budget))
+
+
+def scene_resolution(scene) -> int:
+    """resolution() for ``scene``: its triangles, and the views of all its lights."""
+    lo, hi = scene.bounds()
+    radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
+    views = sum(len(light_views(light, (lo + hi) / 2.0, radius, RESOLUTION, 1)) for light in scene.lights)
+    return resolution(scene.triangle_count, views)
+
+
 def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     """The light buffers of every light of ``scene`` (uploaded as ``gpu``), cached on the scene.
 
@@ -112,6 +140,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     center = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
     clearances = _clearances(gpu, scene.lights)
+    side = scene_resolution(scene)
     views, spans, view_closed = [], [], []
     for light, clearance, light_closed in zip(scene.lights, clearances, closed):
         if clearance < MIN_CLEARANCE_RADII * radius:
@@ -119,14 +148,14 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
             continue
         try:
             light_projections = [projection(cam, orthographic=bool(view.orthographic))
-                                 for cam, view in light_views(light, center, radius, RESOLUTION, 1)]
+                                 for cam, view in light_views(light, center, radius, side, 1)]
         except InputError:  # a scene so large that its views overflow: the BVH handles it
             spans.append((0, 0))
             continue
         spans.append((len(views), len(light_projections)))
         views += light_projections
         view_closed += [light_closed] * len(light_projections)
-    cells = RESOLUTION * RESOLUTION
+    cells = side * side
     # the large arrays on huge pages: their first touch would fault once per 4 KiB page
     counts = huge_pages.zeros(max(len(views), 1) * cells, wp.int32)
 
@@ -155,7 +184,8 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     start = cell_start.numpy()  # a view
     start[0] = 0
     np.cumsum(per_cell.reshape(-1), dtype=np.int32, out=start[1:])  # in int32 (no overflow: total < 2^31)
-    cursors = huge_pages.empty(per_cell.size, wp.int32)
+    del per_cell, counts  # freed before the cursors are made: 8 bytes a cell at most while building
+    cursors = huge_pages.empty(len(start) - 1, wp.int32)
     cursors.numpy()[:] = start[:-1]
     entries = max(total, 1)
     cell_faces = huge_pages.empty(entries, wp.int32)
@@ -173,7 +203,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     # triangles marked, in blocks that spread every view's work over the threads (the mesh often
     # fills one or two faces)
     blocks = WORK_BLOCKS_PER_THREAD * threads
-    rows = -(-RESOLUTION // blocks)
+    rows = -(-side // blocks)
     planes = wp.empty(max(triangles, 1), dtype=lb.LightPlane, device="cpu")
     for light, (first, n) in enumerate(spans):
         if n == 0:
@@ -186,16 +216,16 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
 
         def finish(job):
             v, row = job
-            wp.launch(lb.finish_cells, dim=min(rows, RESOLUTION - row), device="cpu",
-                      inputs=[positions, indices, planes, RESOLUTION, v * cells + row * RESOLUTION, cell_start,
+            wp.launch(lb.finish_cells, dim=min(rows, side - row), device="cpu",
+                      inputs=[positions, indices, planes, side, v * cells + row * side, cell_start,
                               cell_faces, cell_near, cell_clear])
 
         def filled(v, row):
-            block = v * cells + row * RESOLUTION
-            return start[min(block + rows * RESOLUTION, (v + 1) * cells)] > start[block]
+            block = v * cells + row * side
+            return start[min(block + rows * side, (v + 1) * cells)] > start[block]
 
         run_all(plane, _work_blocks(triangles, threads), threads)
-        run_all(finish, [(v, row) for v in range(first, first + n) for row in range(0, RESOLUTION, rows)
+        run_all(finish, [(v, row) for v in range(first, first + n) for row in range(0, side, rows)
                          if filled(v, row)], threads)
     buffers = lb.LightBuffers()
     buffers.views = wp.array(views if views else [lb.Projection()], dtype=lb.Projection, device="cpu")
@@ -208,7 +238,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     buffers.triangle_clear = wp.zeros(max(len(scene.lights) * triangles, 1), dtype=wp.uint8, device="cpu")
     buffers.region_grids, buffers.region_clear = _no_regions()
     buffers.triangles = triangles
-    buffers.resolution = RESOLUTION
+    buffers.resolution = side
     _mark_triangles(lb.mark_clear_triangles, buffers, gpu, threads, front_only, parallel_views=False)
     scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers, front_only, False)
     return buffers

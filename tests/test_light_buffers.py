@@ -126,22 +126,15 @@ def moved(light, offset):
     return dataclasses.replace(light, position=tuple(np.asarray(light.position) + offset))
 
 
-@pytest.mark.parametrize("light", LIGHTS)
-@pytest.mark.parametrize("mesh,offset", [("icosphere", 0.0), ("bunny", 0.0), ("icosphere", 1e4)],
-                         ids=["icosphere", "bunny", "icosphere 1e4 from the origin"])
-def test_light_buffer_verdicts_are_the_bvhs(light, mesh, offset):
-    """Far from the origin the float32 shadow rays miss the light by more: still no verdict differs."""
-    if mesh == "bunny" and not ASSETS.exists():
-        pytest.skip("shared/assets is not beside the repository")
-    shift = np.array([offset, 0.5 * offset, -offset])
-    scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), moved(LIGHTS[light], shift),
-                             shift)
+def assert_verdicts_are_the_bvhs(scene):
+    """Shadow rays from random points of the scene's triangles (the floor's two, its last, get as
+    many as the mesh) towards its first light: the light buffers decide nearly all of them, and
+    every verdict but for <= 1e-4 of them is the BVH's. Returns the light buffers."""
     gpu = upload(scene)
     buffers = build(scene, gpu)
     rng = np.random.default_rng(1)
     n = 200_000
     faces = rng.integers(0, len(gpu.data.indices) // 3, n)
-    # the floor's two triangles get as many samples as the mesh
     faces[: n // 2] = len(gpu.data.indices) // 3 - 1 - rng.integers(0, 2, n // 2)
     uv = rng.random((n, 2))
     uv = np.where(uv.sum(axis=1, keepdims=True) > 1.0, 1.0 - uv, uv)
@@ -154,6 +147,63 @@ def test_light_buffer_verdicts_are_the_bvhs(light, mesh, offset):
     assert 0.02 < bvh.mean() < 0.98
     # a ray grazing a triangle's edge may be told apart differently by the two traversals' rounding
     assert (verdict[decided] != bvh[decided]).sum() <= 1e-4 * len(verdict)
+    return buffers
+
+
+@pytest.mark.parametrize("light", LIGHTS)
+@pytest.mark.parametrize("mesh,offset", [("icosphere", 0.0), ("bunny", 0.0), ("icosphere", 1e4)],
+                         ids=["icosphere", "bunny", "icosphere 1e4 from the origin"])
+def test_light_buffer_verdicts_are_the_bvhs(light, mesh, offset):
+    """Far from the origin the float32 shadow rays miss the light by more: still no verdict differs."""
+    if mesh == "bunny" and not ASSETS.exists():
+        pytest.skip("shared/assets is not beside the repository")
+    shift = np.array([offset, 0.5 * offset, -offset])
+    scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), moved(LIGHTS[light], shift),
+                             shift)
+    assert_verdicts_are_the_bvhs(scene)
+
+
+@pytest.mark.parametrize("light", LIGHTS)
+def test_light_buffer_verdicts_are_the_bvhs_in_the_finer_views_of_dense_scenes(light, monkeypatch):
+    """The finer cells a denser scene's light buffers get (here the icosphere's scene counts as
+    one with 9 times its triangles: 3 times 512 cells a side where the budget allows) give the
+    BVH's verdicts too, and explain names them."""
+    import pbrwarp.light_buffers as light_buffers
+
+    scene = scene_with_floor(icosphere(5), LIGHTS[light])
+    monkeypatch.setattr(light_buffers, "RESOLUTION_TRIANGLES", scene.triangle_count / 9)
+    views = 1 if light in ("directional", "narrow spot") else 6
+    side = min(3 * light_buffers.RESOLUTION, light_buffers.RESOLUTION_STEP
+               * int(np.sqrt(light_buffers.MAX_CELLS / views) // light_buffers.RESOLUTION_STEP))
+    assert assert_verdicts_are_the_bvhs(scene).resolution == side > light_buffers.RESOLUTION
+    assert f"each of {side}² directions per view" in pw.explain(scene)
+
+
+def test_denser_scenes_get_finer_light_buffer_views():
+    """RESOLUTION cells a side up to about RESOLUTION_TRIANGLES triangles, then as many cells per
+    triangle (the side growing with the square root of the count, to the nearest multiple of
+    RESOLUTION_STEP), within MAX_CELLS over all the views; never fewer cells for more triangles
+    or fewer views."""
+    from pbrwarp.light_buffers import MAX_CELLS, RESOLUTION, RESOLUTION_STEP, RESOLUTION_TRIANGLES, resolution
+
+    assert resolution(1, 6) == resolution(RESOLUTION_TRIANGLES, 6) == RESOLUTION
+    assert resolution(4 * RESOLUTION_TRIANGLES, 6) == 2 * RESOLUTION
+    # a floor's two triangles more do not change the side
+    assert resolution(RESOLUTION_TRIANGLES + 2, 6) == RESOLUTION
+    counts = np.unique(np.geomspace(1, 1e8, 400).astype(int))
+    for views in (1, 6, 24, 600):
+        sides = [resolution(int(t), views) for t in counts]
+        assert all(a <= b for a, b in zip(sides, sides[1:]))
+        for t, side in zip(counts, sides):
+            assert side % RESOLUTION_STEP == 0
+            if side > RESOLUTION:
+                assert views * side * side <= MAX_CELLS
+                ideal = RESOLUTION * np.sqrt(t / RESOLUTION_TRIANGLES)
+                assert side <= ideal + RESOLUTION_STEP / 2
+                # short of the ideal only where one step more would break the budget
+                assert side >= ideal - RESOLUTION_STEP / 2 or views * (side + RESOLUTION_STEP) ** 2 > MAX_CELLS
+            assert resolution(int(t), 2 * views) <= side
+    assert resolution(10**8, 600) == RESOLUTION
 
 
 def clear_marks(mesh, light, offset=0.0):
