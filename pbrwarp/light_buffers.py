@@ -34,7 +34,7 @@ from pbrwarp.kernels.loading import load_for_cpu
 RESOLUTION = 512
 RESOLUTION_TRIANGLES = 100_000
 RESOLUTION_STEP = 128
-MAX_CELLS = 1 << 24
+MAX_CELLS = 1 << 23
 # Light buffers are not built for a light closer than this fraction of the scene's radius to a
 # triangle: its shadow rays would span many cells near the light; they walk the BVH instead.
 MIN_CLEARANCE_RADII = 1.0e-4
