@@ -22,10 +22,9 @@ import warp as wp
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import command_line, interleaved_medians, write_results  # noqa: E402
-from frames import scene_on_floor  # noqa: E402
+from frames import frame, scene_on_floor  # noqa: E402
 from visibility import subdivided  # noqa: E402
 
-import pbrwarp as pw  # noqa: E402
 from pbrwarp import light_buffers  # noqa: E402
 from pbrwarp.gpu_scene import upload  # noqa: E402
 from pbrwarp.meshes import bunny  # noqa: E402
@@ -71,12 +70,8 @@ def main(argv=None):
             scenes[side], _ = scene_on_floor(mesh)
             built[side] = with_side(scenes[side], side)
 
-        def frame(scene, shadows):
-            return lambda: pw.render(scene, camera, width=args.size, height=args.size, visibility="raster",
-                                     shadows=shadows, progress=False)
-
-        fns = {side: frame(scenes[side], "rays") for side in sides}
-        fns["no shadows"] = frame(base, False)
+        fns = {side: frame(scenes[side], camera, args.size, "raster", "rays") for side in sides}
+        fns["no shadows"] = frame(base, camera, args.size, "raster", False)
         times = interleaved_medians(fns, args.repeats)
         for side in sides:
             build_ms, marks_ms, cells, entries = built[side]
