@@ -173,11 +173,13 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
         decisions.append(Decision("shadows", "map", f"shadow maps: {len(scene.lights)} lookups per hit, "
                                   f"maps rasterized from each light ({scene.triangle_count:,} triangles)"))
     else:
+        side = light_buffers.scene_resolution(scene)
+        finer = (f", finer than the {light_buffers.RESOLUTION}² of scenes up to "
+                 f"~{light_buffers.RESOLUTION_TRIANGLES:,} triangles" if side > light_buffers.RESOLUTION else "")
         decisions.append(Decision("shadows", "rays", f"shadow rays: {len(scene.lights)} per hit, against "
                                   f"{scene.triangle_count:,} triangles, through each light's light buffer "
-                                  f"(the triangles seen in each of {light_buffers.scene_resolution(scene)}² "
-                                  "directions per view; rays leaving a triangle, or its interior, marked clear of the "
-                                  "light skip it)"))
+                                  f"(the triangles seen in each of {side}² directions per view{finer}; rays leaving "
+                                  "a triangle, or its interior, marked clear of the light skip it)"))
     environment = scene.environment
     if environment is None:
         add("environment", False, "no environment lighting: scene.environment is None")

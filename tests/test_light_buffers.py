@@ -176,7 +176,7 @@ def test_light_buffer_verdicts_are_the_bvhs_in_the_finer_views_of_dense_scenes(l
     side = min(3 * light_buffers.RESOLUTION, light_buffers.RESOLUTION_STEP
                * int(np.sqrt(light_buffers.MAX_CELLS / views) // light_buffers.RESOLUTION_STEP))
     assert assert_verdicts_are_the_bvhs(scene).resolution == side > light_buffers.RESOLUTION
-    assert f"each of {side}² directions per view" in pw.explain(scene)
+    assert f"each of {side}² directions per view, finer than the 512² of scenes up to" in pw.explain(scene)
 
 
 def test_denser_scenes_get_finer_light_buffer_views():
