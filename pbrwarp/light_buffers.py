@@ -20,7 +20,7 @@ from .errors import InputError
 from .gpu_scene import back_faces_unseen, closed_seen_from, face_flags
 from .parallel import run_all, thread_count
 from .raster import projection
-from .shadow_maps import light_views, light_geometry
+from .shadow_maps import light_geometry, light_views, view_count
 from pbrwarp.kernels import light_buffer as lb
 from pbrwarp.kernels.loading import load_for_cpu
 
@@ -105,11 +105,9 @@ def resolution(triangles: int, views: int) -> int:
 
 
 def scene_resolution(scene) -> int:
-    """resolution() for ``scene``: its triangles, and the views of all its lights."""
-    lo, hi = scene.bounds()
-    radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
-    views = sum(len(light_views(light, (lo + hi) / 2.0, radius, RESOLUTION, 1)) for light in scene.lights)
-    return resolution(scene.triangle_count, views)
+    """resolution() for ``scene``: its triangles, and the views of all its lights. Cheap (no
+    bounds, no views made): every render's explain text asks for it."""
+    return resolution(scene.triangle_count, sum(view_count(light) for light in scene.lights))
 
 
 def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:

@@ -88,6 +88,17 @@ def _view(eye, forward, half_extent: float, resolution: int, orthographic: bool 
     return cam, view
 
 
+def _has_one_view(light) -> bool:
+    """Whether light_views gives ``light`` one view (a directional light, a narrow spot) rather
+    than a cube of six."""
+    return light.kind == DIRECTIONAL or (light.kind == SPOT and light.outer_cone <= MAX_SPOT_VIEW_HALF_ANGLE)
+
+
+def view_count(light) -> int:
+    """How many views light_views gives ``light``, without making them."""
+    return 1 if _has_one_view(light) else len(CUBE_DIRECTIONS)
+
+
 def light_views(light, center, radius: float, res: int, margin_texels: int):
     """The (CameraData, ShadowView) pairs of the views of one light (shadow maps, light buffers):
     a cube of six for point lights and spot lights wider than MAX_SPOT_VIEW_HALF_ANGLE, one
@@ -99,7 +110,7 @@ def light_views(light, center, radius: float, res: int, margin_texels: int):
         eye = center - np.asarray(light.direction) * (DIRECTIONAL_VIEW_DISTANCE_RADII * radius)
         return [_view(eye, light.direction, radius * margin, res, orthographic=True)]
     position = np.asarray(light.position, dtype=np.float64)
-    if light.kind == SPOT and light.outer_cone <= MAX_SPOT_VIEW_HALF_ANGLE:
+    if _has_one_view(light):
         return [_view(position, light.direction, math.tan(light.outer_cone) * margin, res)]
     return [_view(position, d, margin, res) for d in CUBE_DIRECTIONS]
 

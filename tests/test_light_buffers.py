@@ -206,6 +206,15 @@ def test_denser_scenes_get_finer_light_buffer_views():
     assert resolution(10**8, 600) == RESOLUTION
 
 
+@pytest.mark.parametrize("light", LIGHTS)
+def test_view_count_is_the_number_of_light_views(light):
+    """The light-buffer side is chosen on every render from view_count, which must count the
+    views light_views makes."""
+    from pbrwarp.shadow_maps import light_views, view_count
+
+    assert view_count(LIGHTS[light]) == len(light_views(LIGHTS[light], np.zeros(3), 2.0, 64, 1))
+
+
 def clear_marks(mesh, light, offset=0.0):
     """(uploaded scene, light buffers, per triangle its mark for the light) of ``mesh`` on the floor
     (all moved by ``offset`` times (1, 0.5, -1)), once the buffers were reused (which marks
