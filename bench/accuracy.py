@@ -178,7 +178,7 @@ def main(argv=None):
         def fresh_maps(settings=settings):
             # time the maps' rasterization too: a render that reuses them costs only the lookups
             for _, s, c in scenes:
-                s.__dict__.pop("_shadow_maps", None)
+                s.cache.drop("shadow maps")
                 render(s, c, shadows=settings)
 
         add("shadows", label, [rel_rmse(f.rgb, r.rgb, r.alpha > 0) for f, r in zip(frames, with_shadows)],

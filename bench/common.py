@@ -104,16 +104,12 @@ def interleaved_medians(fns: dict, repeats: int = 5, warmup: int = 1) -> dict:
     return {name: statistics.median(times) for name, times in samples.items()}
 
 
-def rebuilt(scene, cache: str, fn):
-    """fn() with the scene's cached ``cache`` entry ("_light_buffers", "_shadow_maps") dropped, so
-    that fn builds it anew, and the old entry put back afterwards: variants timed in turn with it
-    keep what they measure (light buffers reused for a while have their interiors marked)."""
-    kept = scene.__dict__.pop(cache, None)
-    try:
+def rebuilt(scene, slot: str, fn):
+    """fn() with the scene cache's ``slot`` ("light buffers", "shadow maps") emptied, so that fn
+    builds it anew, and the old value put back afterwards: variants timed in turn with it keep
+    what they measure (light buffers reused for a while have their interiors marked)."""
+    with scene.cache.dropped(slot):
         return fn()
-    finally:
-        if kept is not None:
-            scene.__dict__[cache] = kept
 
 
 def machine() -> dict:

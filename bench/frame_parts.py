@@ -55,7 +55,7 @@ def variants(scene, camera, size, threads):
                                  progress=False, **options)
 
     def build():
-        rebuilt(scene, "_light_buffers", lambda: light_buffers.build(scene, gpu, threads))
+        rebuilt(scene, "light buffers", lambda: light_buffers.build(scene, gpu, threads))
 
     def without_marks(first_code):
         def run():
@@ -70,10 +70,14 @@ def variants(scene, camera, size, threads):
         return run
 
     def mark_interiors():
-        # the kept buffers' interiors and regions marked again from the whole triangles' marks
+        # the kept buffers' interiors and regions marked again (into a copy) from the whole triangles' marks
         buffers = light_buffers.build(scene, gpu, threads)
-        buffers.triangle_clear.assign(dropped(buffers.triangle_clear.numpy(), INTERIOR_CLEAR))
-        light_buffers.mark_interiors(buffers, gpu, threads, light_buffers.front_only_faces(scene, gpu))
+        marks = buffers.triangle_clear.numpy().copy()
+        buffers.triangle_clear.assign(dropped(marks, INTERIOR_CLEAR))
+        try:
+            light_buffers.mark_interiors(scene, gpu, buffers, threads)
+        finally:
+            buffers.triangle_clear.assign(marks)
 
     return dict(zip(PARTS, (
         lambda: visibility_buffer(gpu.data.positions, gpu.data.indices, cam, threads=threads, out=out,

@@ -88,9 +88,9 @@ def frame(scene, camera, size, visibility, shadows):
         pw.render(scene, camera, width=size, height=size, visibility=visibility, shadows=mode, progress=False)
 
     if shadows == "map rebuilt":
-        return lambda: rebuilt(scene, "_shadow_maps", render_one)
+        return lambda: rebuilt(scene, "shadow maps", render_one)
     if shadows == "rays rebuilt":
-        return lambda: rebuilt(scene, "_light_buffers", render_one)
+        return lambda: rebuilt(scene, "light buffers", render_one)
     return render_one
 
 

@@ -46,7 +46,8 @@ def with_side(scene, side: int):
         t0 = time.perf_counter()
         buffers = light_buffers.build(scene, gpu)
         t1 = time.perf_counter()
-        assert light_buffers.build(scene, gpu) is buffers  # the first reuse marks interiors and regions
+        marked = light_buffers.build(scene, gpu)  # the first reuse: a copy with interiors and regions marked
+        assert marked.cell_faces is buffers.cell_faces and light_buffers.build(scene, gpu) is marked
         t2 = time.perf_counter()
     finally:
         light_buffers.scene_resolution = chosen

@@ -18,6 +18,8 @@ bindings read only .exr). Its .hdr pixels are bit-identical to OpenCV's.
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
+
 import numpy as np
 
 from . import validate
@@ -37,7 +39,8 @@ class Environment:
 
     ``Environment(texels, intensity=1.0, rotation=0.0)`` takes an array; ``load``, ``uniform`` and
     ``sky`` make one from a file, a colour or a gradient. The texels are kept read-only, so the
-    prefiltered levels and SH coefficients derived from them (``data()``) are computed once;
+    prefiltered levels and SH coefficients derived from them (``data()``) are computed once per
+    process, for every scene using this environment (pbrwarp.scene_cache.prefiltered_environment);
     ``intensity`` and ``rotation`` may be changed at any time without recomputing anything.
     """
 
@@ -66,7 +69,6 @@ class Environment:
         self.texels = texels32
         self.intensity = intensity
         self.rotation = rotation
-        self._data = None
 
     @property
     def intensity(self) -> float:
@@ -141,40 +143,57 @@ class Environment:
     # ------------------------------------------------------------------ what the kernels read
     def data(self, threads: int | None = None):
         """The environment as the render kernel reads it (kernels.ibl.EnvironmentData): the source
-        and its GGX-prefiltered levels, its 9 SH coefficients, intensity and rotation. The first
-        call prefilters (on ``threads`` threads, all cores by default) and projects; later calls
-        only update intensity and rotation."""
-        import warp as wp
-
+        and its GGX-prefiltered levels, its 9 SH coefficients, and the current intensity and
+        rotation. The first call in the process prefilters (on ``threads`` threads, all cores by
+        default) and projects; later calls, from any thread, share that work and make only a new
+        struct (so a render never sees another's intensity or rotation change under it)."""
         from .kernels.ibl import EnvironmentData
-        from .kernels.prefilter import prefilter
-        from .kernels.sh import project_sh
 
-        if self._data is None:
-            workers = thread_count(threads)
-
-            def run_bands(launch, rows):
-                bounds = np.linspace(0, rows, min(workers, rows) + 1).astype(int)
-                bands = [(int(a), int(b - a)) for a, b in zip(bounds[:-1], bounds[1:])]
-                list(run(lambda band: launch(*band), bands, workers))
-
-            levels, _ = prefilter(self.texels, run_bands)
-            data = EnvironmentData()
-            data.radiance = levels
-            # level 0, the source, starts the flat texel array
-            coefficients = project_sh(levels.texels, self.width, self.height)
-            data.sh = wp.array(coefficients.astype(np.float32), dtype=wp.vec3, device="cpu")
-            self._data = data
-            self._sh = coefficients
-        self._data.intensity = self.intensity
-        self._data.rotation_cos = float(np.cos(self.rotation))
-        self._data.rotation_sin = float(np.sin(self.rotation))
-        return self._data
+        prefiltered = self._prefiltered(threads)
+        data = EnvironmentData()
+        data.radiance = prefiltered.radiance
+        data.sh = prefiltered.sh
+        data.intensity = self.intensity
+        data.rotation_cos = float(np.cos(self.rotation))
+        data.rotation_sin = float(np.sin(self.rotation))
+        return data
 
     def sh_coefficients(self) -> np.ndarray:
         """(9, 3) float64 SH coefficients of the unscaled, unrotated radiance (order of kernels/sh.py)."""
-        self.data()
-        return self._sh
+        return self._prefiltered(None).coefficients.copy()
+
+    def _prefiltered(self, threads) -> "_Prefiltered":
+        from .scene_cache import prefiltered_environment
+
+        return prefiltered_environment(self, lambda: _Prefiltered.of(self.texels, thread_count(threads)))
+
+
+@dataclass(frozen=True)
+class _Prefiltered:
+    """Texels GGX-prefiltered (kernels/prefilter.py: ``radiance``, level 0 the source) and
+    projected on 9 SH coefficients (kernels/sh.py: float64 ``coefficients``, and ``sh`` as the
+    render kernel reads them)."""
+
+    radiance: object
+    coefficients: np.ndarray
+    sh: object
+
+    @classmethod
+    def of(cls, texels: np.ndarray, workers: int) -> "_Prefiltered":
+        import warp as wp
+
+        from .kernels.prefilter import prefilter
+        from .kernels.sh import project_sh
+
+        def run_bands(launch, rows):
+            bounds = np.linspace(0, rows, min(workers, rows) + 1).astype(int)
+            bands = [(int(a), int(b - a)) for a, b in zip(bounds[:-1], bounds[1:])]
+            list(run(lambda band: launch(*band), bands, workers))
+
+        levels, _ = prefilter(texels, run_bands)
+        # level 0, the source, starts the flat texel array
+        coefficients = project_sh(levels.texels, texels.shape[1], texels.shape[0])
+        return cls(levels, coefficients, wp.array(coefficients.astype(np.float32), dtype=wp.vec3, device="cpu"))
 
 
 def _read_hdr_image(path: str) -> np.ndarray:

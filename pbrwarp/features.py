@@ -74,15 +74,16 @@ class Decision:
     why: str
 
 
-def _is_convex(prim) -> bool:
-    """Whether a primitive is one closed convex surface (cached: the hull is costly for big meshes)."""
-    cached = prim.__dict__.get("_convex")
-    if cached is None:
+def _is_convex(scene, prim) -> bool:
+    """Whether ``prim``, one of ``scene``'s, is one closed convex surface (kept in the scene cache:
+    the hull is costly for big meshes)."""
+    def convex(prim):
         import trimesh
 
         mesh = trimesh.Trimesh(prim.positions, prim.faces, process=False)
-        cached = prim.__dict__["_convex"] = bool(mesh.is_watertight and mesh.is_convex)
-    return cached
+        return bool(mesh.is_watertight and mesh.is_convex)
+
+    return scene.cache.fact("convex", prim, convex)
 
 
 def _count(n: int, noun: str) -> str:
@@ -167,7 +168,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
         add("shadows", False, "no shadow rays: shadows=False")
     elif not scene.lights:
         add("shadows", False, "no shadow rays: no lights")
-    elif len(prims) == 1 and prims[0].material.alpha_mode != "MASK" and _is_convex(prims[0]):
+    elif len(prims) == 1 and prims[0].material.alpha_mode != "MASK" and _is_convex(scene, prims[0]):
         add("shadows", False, "no shadow rays: one convex mesh cannot shadow itself beyond what n.l does")
     elif shadows == "map":
         decisions.append(Decision("shadows", "map", f"shadow maps: {len(scene.lights)} lookups per hit, "

@@ -1,7 +1,7 @@
 """Turning a Scene into the flat Warp arrays the kernels read (kernels/scene_data.py).
 
-Geometry (with its BVH) and texels are cached on the Scene and rebuilt only when its meshes or
-textures change; materials and lights are small and re-uploaded on every render, so editing a
+Geometry (with its BVH) and texels are kept in the scene's cache (pbrwarp/scene_cache.py) and
+rebuilt only when its meshes or textures change; materials and lights are small and re-uploaded on every render, so editing a
 light or a material factor between renders takes effect without rebuilding anything.
 
 The primitives' triangles and vertices are merged into one mesh and stored in locality order
@@ -35,9 +35,8 @@ MAX_ELEMENTS = 2**31 - 1
 MIN_CONE_COS_DIFFERENCE = 0.001
 
 
-@dataclass
+@dataclass(eq=False)
 class _Geometry:
-    key: tuple
     mesh: wp.Mesh
     positions: wp.array
     indices: wp.array
@@ -50,7 +49,7 @@ class _Geometry:
     clusters: Clusters
 
 
-@dataclass
+@dataclass(eq=False)
 class _Texels:
     key: tuple
     slots: dict  # (id(texture), srgb) -> row in the texture table
@@ -65,6 +64,11 @@ class GpuScene:
     material_rows: list
     # kept alive while ``data`` refers to them; the first is the uploaded geometry
     _keep: tuple
+
+    @property
+    def geometry(self) -> _Geometry:
+        """The uploaded geometry, which the scene cache's slots derived from it are keyed by."""
+        return self._keep[0]
 
     @property
     def clusters(self) -> Clusters:
@@ -83,7 +87,7 @@ def _primitive_tangents(prim):
     return generate_tangents(prim.positions, normals, prim.uvs, prim.faces)
 
 
-def _build_geometry(prims, key) -> _Geometry:
+def _build_geometry(prims) -> _Geometry:
     counts = [len(p.positions) for p in prims]
     total_vertices = sum(counts)
     total_faces = sum(len(p.faces) for p in prims)
@@ -118,7 +122,6 @@ def _build_geometry(prims, key) -> _Geometry:
     wp_indices = wp.array(indices, dtype=wp.int32, device="cpu")
     mesh = wp.Mesh(points=wp_positions, indices=wp_indices)
     return _Geometry(
-        key=key,
         mesh=mesh,
         positions=wp_positions,
         indices=wp_indices,
@@ -214,26 +217,24 @@ def upload(scene) -> GpuScene:
     prims = list(scene.primitives)
     if not prims:
         raise InputError("the scene has no meshes: add one with scene.add_mesh(...) or load a file")
-    cache = scene.__dict__.setdefault("_gpu_cache", {})
-    geo_key = tuple(id(p) for p in prims)
-    geometry = cache.get("geometry")
-    if geometry is None or geometry.key != geo_key:
-        geometry = cache["geometry"] = _build_geometry(prims, geo_key)
-    tex_key = tuple((id(tex), srgb) for p in prims if p.uvs is not None for _, tex, srgb in p.material.textures())
-    texels = cache.get("texels")
-    if texels is None or texels.key != tex_key:
-        texels = cache["texels"] = _build_texels(prims, tex_key)
+    cache = scene.cache
+    # primitives and textures compare by identity, and the keys keep them alive
+    geo_key = tuple(prims)
+    geometry = cache.get("geometry", geo_key, lambda: _build_geometry(prims))
+    tex_key = tuple((tex, srgb) for p in prims if p.uvs is not None for _, tex, srgb in p.material.textures())
+    texels = cache.get("texels", tex_key, lambda: _build_texels(prims, tex_key))
     for prim in prims:
         if prim.uvs is None and any(True for _ in prim.material.textures()):
             warnings.warn(f"mesh {prim.name!r} has textures but no UVs: its textures are ignored", stacklevel=3)
 
     # the rows as last uploaded while no material or light changed: building Warp structs field
     # by field costs about a millisecond a render
-    rows_key = (geo_key, tex_key, tuple((_content_key(p.material), p.uvs is not None) for p in prims),
+    rows_key = (geometry, texels, tuple((_content_key(p.material), p.uvs is not None) for p in prims),
                 tuple((type(light), _content_key(light)) for light in scene.lights))
-    kept = cache.get("rows")
-    if kept is not None and kept[0] == rows_key:
-        return kept[1]
+    return cache.get("rows", rows_key, lambda: _upload_rows(scene, prims, geometry, texels))
+
+
+def _upload_rows(scene, prims, geometry: _Geometry, texels: _Texels) -> GpuScene:
     materials = [_material_row(p.material, texels.slots, p.uvs is not None) for p in prims]
     lights = [_light_row(light) for light in scene.lights]
     data = SceneData()
@@ -245,9 +246,7 @@ def upload(scene) -> GpuScene:
     data.textures, data.texels = texels.table, texels.texels
     data.lights = wp.array(lights if lights else [LightData()], dtype=LightData, device="cpu")
     data.num_lights = len(lights)
-    gpu = GpuScene(data=data, material_rows=materials, _keep=(geometry, texels, data.materials, data.lights))
-    cache["rows"] = (rows_key, gpu)
-    return gpu
+    return GpuScene(data=data, material_rows=materials, _keep=(geometry, texels, data.materials, data.lights))
 
 
 def _content_key(value):
@@ -269,71 +268,60 @@ def _content_key(value):
 def _is_closed_volume(prim) -> bool:
     """Whether a primitive bounds a volume with its faces turned outwards: every directed edge
     appears once and its reverse once (watertight and consistently wound; vertices are not
-    merged, so a mesh split at UV seams counts as open) and the signed volume is positive.
-    Cached on the primitive: the edge sort costs ~0.1 s per million triangles."""
-    cached = prim.__dict__.get("_closed_volume")
-    if cached is None:
-        faces = np.asarray(prim.faces, dtype=np.int64)
-        closed = len(faces) > 0 and not np.any((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
-                                                 | (faces[:, 2] == faces[:, 0]))
-        if closed:
-            tail, head = faces.reshape(-1), np.roll(faces, -1, axis=1).reshape(-1)
-            edges = np.sort(tail * len(prim.positions) + head)
-            reversed_edges = np.sort(head * len(prim.positions) + tail)
-            closed = bool(np.all(edges[1:] != edges[:-1]) and np.array_equal(edges, reversed_edges))
-        if closed:
-            p = prim.positions[faces]
-            closed = float(np.einsum("ij,ij->", p[:, 0], np.cross(p[:, 1], p[:, 2]))) > 0.0
-        cached = prim.__dict__["_closed_volume"] = closed
-    return cached
+    merged, so a mesh split at UV seams counts as open) and the signed volume is positive. The
+    edge sort costs ~0.1 s per million triangles: callers keep the answer in the scene cache."""
+    faces = np.asarray(prim.faces, dtype=np.int64)
+    closed = len(faces) > 0 and not np.any((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
+                                             | (faces[:, 2] == faces[:, 0]))
+    if closed:
+        tail, head = faces.reshape(-1), np.roll(faces, -1, axis=1).reshape(-1)
+        edges = np.sort(tail * len(prim.positions) + head)
+        reversed_edges = np.sort(head * len(prim.positions) + tail)
+        closed = bool(np.all(edges[1:] != edges[:-1]) and np.array_equal(edges, reversed_edges))
+    if closed:
+        p = prim.positions[faces]
+        closed = float(np.einsum("ij,ij->", p[:, 0], np.cross(p[:, 1], p[:, 2]))) > 0.0
+    return closed
 
 
-def _bounds(prim) -> tuple[np.ndarray, np.ndarray]:
-    """prim.bounds(), cached: positions are fixed once the primitive is uploaded."""
-    cached = prim.__dict__.get("_bounds")
-    if cached is None:
-        cached = prim.__dict__["_bounds"] = prim.bounds()
-    return cached
-
-
-def closed_seen_from(prim, point=None) -> bool:
+def closed_seen_from(scene, prim, point=None) -> bool:
     """Whether ``prim`` is an opaque closed volume and ``point`` (None: infinitely far away) lies
     outside its bounding box, so outside the volume: a ray from there enters it through a front
     face first, and a segment from anywhere to there that meets it leaves it through a front face
-    turned towards the point."""
+    turned towards the point. ``prim`` is one of ``scene``'s, whose cache keeps its facts."""
     if prim.material.alpha_mode == "MASK":
         return False
     if point is not None:
-        lo, hi = _bounds(prim)
+        lo, hi = scene.cache.fact("bounds", prim, lambda p: p.bounds())
         if not (np.any(point < lo) or np.any(point > hi)):
             return False
-    return _is_closed_volume(prim)
+    return scene.cache.fact("closed volume", prim, _is_closed_volume)
 
 
-def back_faces_unseen(prim, point=None) -> bool:
+def back_faces_unseen(scene, prim, point=None) -> bool:
     """Whether no surface a ray from ``point`` (None: from infinitely far away) shows is a back
-    face of ``prim``: its material is single-sided (the render kernel passes through its back
-    faces), or closed_seen_from(prim, point)."""
-    return not prim.material.double_sided or closed_seen_from(prim, point)
+    face of ``prim`` (one of ``scene``'s): its material is single-sided (the render kernel passes
+    through its back faces), or closed_seen_from(scene, prim, point)."""
+    return not prim.material.double_sided or closed_seen_from(scene, prim, point)
 
 
-# Sets of per-triangle flags kept per kind on an uploaded geometry (face_flags).
+# Sets of per-triangle flags of each kind kept in the scene cache (face_flags).
 KEPT_FACE_FLAGS = 8
 
 
-def face_flags(gpu: GpuScene, kind: str, per_primitive: list[bool]) -> wp.array:
-    """Per-primitive flags spread over the triangles (a uint8 wp.array, one entry per triangle),
-    kept on the uploaded geometry: the same array for the same flags (lights that agree share
-    one), the last KEPT_FACE_FLAGS sets of each ``kind`` ("culling", "front only", "closed")."""
-    geometry = gpu._keep[0]
-    cache = geometry.__dict__.setdefault("_face_flags", {}).setdefault(kind, {})
-    key = tuple(bool(f) for f in per_primitive)
-    if key not in cache:
-        if len(cache) >= KEPT_FACE_FLAGS:
-            del cache[next(iter(cache))]
-        per_mesh = np.array(key, dtype=np.uint8)
-        cache[key] = wp.array(per_mesh[geometry.face_primitive.numpy()], dtype=wp.uint8, device="cpu")
-    return cache[key]
+def face_flags(scene, gpu: GpuScene, kind: str, per_primitive: list[bool]) -> wp.array:
+    """Per-primitive flags spread over the triangles of ``gpu`` (``scene`` uploaded; a uint8
+    wp.array, one entry per triangle), kept in the scene cache while the geometry stays: the same
+    array for the same flags (lights that agree share one), the last KEPT_FACE_FLAGS sets of each
+    ``kind`` ("culling", "front only", "closed")."""
+    geometry = gpu.geometry
+    flags = tuple(bool(f) for f in per_primitive)
+
+    def spread():
+        per_mesh = np.array(flags, dtype=np.uint8)
+        return wp.array(per_mesh[geometry.face_primitive.numpy()], dtype=wp.uint8, device="cpu")
+
+    return scene.cache.get(("face flags", kind, flags), geometry, spread, keep=KEPT_FACE_FLAGS)
 
 
 def back_face_culling(scene, gpu: GpuScene, eye) -> tuple[wp.array | None, int]:
@@ -341,7 +329,7 @@ def back_face_culling(scene, gpu: GpuScene, eye) -> tuple[wp.array | None, int]:
     and how many meshes are culled): a mesh's back faces need not be drawn where the eye sees
     none of them (back_faces_unseen)."""
     eye = np.asarray(eye, dtype=np.float64)
-    flags = [back_faces_unseen(prim, eye) for prim in scene.primitives]
+    flags = [back_faces_unseen(scene, prim, eye) for prim in scene.primitives]
     if not any(flags):
         return None, 0
-    return face_flags(gpu, "culling", flags), sum(flags)
+    return face_flags(scene, gpu, "culling", flags), sum(flags)

@@ -1,16 +1,17 @@
 """Light buffers, the shadow rays' acceleration structure (kernels/light_buffer.py): per light, the
 triangles seen through each cell of a grid of directions, nearest first. Built on every core from
-the same views as the shadow maps and kept on the scene while its geometry and the lights'
-placement stay the same; a shadow ray tests a handful of triangles instead of walking the BVH, or
-none from a triangle marked clear of the light (nothing nearer to the light in its cells lies in
-front of its plane), from the marked interior of one (nothing comes near the solid that
-interior's rays sweep towards the light), or from a marked region of a large one (a floor, lit
-but for the shadows on it)."""
+the same views as the shadow maps and kept in the scene cache (pbrwarp/scene_cache.py) while its
+geometry, the lights' placement and which sides of each mesh are shaded stay the same; a shadow
+ray tests a handful of triangles instead of walking the BVH, or none from a triangle marked clear
+of the light (nothing nearer to the light in its cells lies in front of its plane), from the
+marked interior of one (nothing comes near the solid that interior's rays sweep towards the
+light), or from a marked region of a large one (a floor, lit but for the shadows on it)."""
 
 from __future__ import annotations
 
 import functools
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
@@ -70,8 +71,8 @@ def _light_point(light):
 
 
 def _per_light_face_flags(scene, gpu, kind: str, seen_from) -> list[wp.array]:
-    """Per light of ``scene``, gpu_scene.face_flags of ``seen_from(prim, the light's point)``."""
-    return [face_flags(gpu, kind, [seen_from(prim, _light_point(light)) for prim in scene.primitives])
+    """Per light of ``scene``, gpu_scene.face_flags of ``seen_from(scene, prim, the light's point)``."""
+    return [face_flags(scene, gpu, kind, [seen_from(scene, prim, _light_point(light)) for prim in scene.primitives])
             for light in scene.lights]
 
 
@@ -110,23 +111,41 @@ def scene_resolution(scene) -> int:
     return resolution(scene.triangle_count, sum(view_count(light) for light in scene.lights))
 
 
+@dataclass(frozen=True)
+class _Kept:
+    """The scene cache's "light buffers" value: the buffers, and whether their interiors are marked."""
+
+    buffers: lb.LightBuffers
+    marked: bool
+
+
 def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
-    """The light buffers of every light of ``scene`` (uploaded as ``gpu``), cached on the scene.
+    """The light buffers of every light of ``scene`` (uploaded as ``gpu``), kept in the scene cache.
 
     Triangle interiors are marked clear (kernels/light_buffer.mark_clear_interiors) when the
     buffers are first reused, for a second frame: the marks can cost as much as the rest of the
     build and pay off only over frames whose lights and geometry stay put, so a light moving every
     frame never pays for them. No triangle is marked where no shadow ray leaves it
-    (front_only_faces)."""
-    key = tuple(light_geometry(light) for light in scene.lights)
-    cached = scene.__dict__.get("_light_buffers")
-    if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
-        positions, key, buffers, front_only, interiors_marked = cached
-        if not interiors_marked:
-            mark_interiors(buffers, gpu, thread_count(threads), front_only)
-            scene.__dict__["_light_buffers"] = (positions, key, buffers, front_only, True)
-        return buffers
+    (front_only_faces). The marks go into a copy that then replaces the kept buffers
+    (mark_interiors), made by the first render that reuses them: renders under way keep reading
+    the unmarked buffers, and renders starting while the copy is made render with them too (the
+    marks only spare queries, whose answers they already know)."""
+    # the materials' sides and cut-outs decide which triangles are listed and marked
+    # (front_only_faces, closed_faces)
+    sides = tuple((p.material.double_sided, p.material.alpha_mode == "MASK") for p in scene.primitives)
+    key = (gpu.geometry, tuple(light_geometry(light) for light in scene.lights), sides)
     threads = thread_count(threads)
+    kept = scene.cache.lookup("light buffers", key)
+    if kept is None:  # a first frame, or one rendered while another thread builds them
+        return scene.cache.get("light buffers", key, lambda: _Kept(_build(scene, gpu, threads), False)).buffers
+    if not kept.marked:
+        kept = scene.cache.improve("light buffers", key, kept,
+                                   lambda unmarked: _Kept(mark_interiors(scene, gpu, unmarked.buffers, threads), True))
+    return kept.buffers
+
+
+def _build(scene, gpu, threads: int) -> lb.LightBuffers:
+    """build's light buffers, their triangles marked clear as a whole but no interiors."""
     for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.light_planes, lb.finish_cells,
                    lb.mark_clear_triangles, lb.mark_clear_interiors):
         load_for_cpu(kernel)
@@ -238,18 +257,25 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     buffers.triangles = triangles
     buffers.resolution = side
     _mark_triangles(lb.mark_clear_triangles, buffers, gpu, threads, front_only, parallel_views=False)
-    scene.__dict__["_light_buffers"] = (gpu.data.positions, key, buffers, front_only, False)
     return buffers
 
 
-def mark_interiors(buffers: lb.LightBuffers, gpu, threads: int, front_only: list[wp.array]):
-    """Mark the interiors of ``buffers``' triangles not clear of their lights as a whole
+def mark_interiors(scene, gpu, buffers: lb.LightBuffers, threads: int) -> lb.LightBuffers:
+    """A copy of ``scene``'s light ``buffers`` (``scene`` uploaded as ``gpu``) with the interiors
+    of the triangles not clear of their lights as a whole marked
     (kernels/light_buffer.mark_clear_interiors), then the regions of the large ones left
-    (mark_clear_regions), every light's, but for the triangles no shadow ray leaves (per light,
-    ``front_only``: front_only_faces of the scene); build does it on the first reuse. Buffers
-    already marked are left as they are."""
-    _mark_triangles(lb.mark_clear_interiors, buffers, gpu, threads, front_only, parallel_views=True)
-    _mark_regions(buffers, gpu, threads, front_only)
+    (mark_clear_regions), every light's, but for the triangles no shadow ray leaves
+    (front_only_faces); build makes it on the first reuse. ``buffers`` are not changed (renders
+    may be reading them); the copy shares all their arrays but the marks and the regions. Marks
+    already made are kept, and no regions are added where there are some."""
+    marked = lb.LightBuffers()
+    for field in lb.LightBuffers.vars:
+        setattr(marked, field, getattr(buffers, field))
+    marked.triangle_clear = wp.clone(buffers.triangle_clear)
+    front_only = front_only_faces(scene, gpu)
+    _mark_triangles(lb.mark_clear_interiors, marked, gpu, threads, front_only, parallel_views=True)
+    _mark_regions(scene, marked, gpu, threads, front_only)
+    return marked
 
 
 def _no_regions():
@@ -282,7 +308,7 @@ def region_grid_sizes(buffers: lb.LightBuffers, light: int, corners: np.ndarray,
     return np.where(size >= MIN_REGION_GRID, size, 0).astype(np.int64)
 
 
-def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int, front_only: list[wp.array]):
+def _mark_regions(scene, buffers: lb.LightBuffers, gpu, threads: int, front_only: list[wp.array]):
     """Give the largest triangles not otherwise marked for a light (at most MAX_REGION_TRIANGLES)
     grids of regions, mark which are clear, then point the triangles' marks at their grids;
     nothing where marks point at grids already (new grids would replace the ones they index)."""
@@ -297,7 +323,7 @@ def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int, front_only: list[
     grids = np.zeros((len(spans) * per_light, 2), dtype=np.int32)
     chosen = []  # (light, slot, face)
     total = 0
-    longest = _longest_edges(gpu, faces, positions)
+    longest = _longest_edges(scene, gpu, faces, positions)
     for light, (_, count) in enumerate(spans):
         if count == 0:
             continue
@@ -344,17 +370,18 @@ def _mark_regions(buffers: lb.LightBuffers, gpu, threads: int, front_only: list[
         marks[light * triangles + face] = int(lb.REGIONS_CLEAR) + slot
 
 
-def _longest_edges(gpu, faces: np.ndarray, positions: np.ndarray) -> np.ndarray:
-    """Per triangle, its longest edge (float32), kept on the uploaded geometry."""
-    geometry = gpu._keep[0]
-    cached = geometry.__dict__.get("_longest_edges")
-    if cached is None:
-        cached = np.empty(len(faces), dtype=np.float32)
+def _longest_edges(scene, gpu, faces: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Per triangle of ``gpu`` (``scene`` uploaded, its ``faces`` and ``positions`` as NumPy
+    arrays), its longest edge (float32), kept in the scene cache while the geometry stays."""
+    def measure():
+        longest = np.empty(len(faces), dtype=np.float32)
         for start in range(0, len(faces), REGION_SIZING_BLOCK):
             corners = positions[faces[start:start + REGION_SIZING_BLOCK]]
-            cached[start:start + len(corners)] = _longest_edge(corners)
-        geometry.__dict__["_longest_edges"] = cached
-    return cached
+            longest[start:start + len(corners)] = _longest_edge(corners)
+        longest.setflags(write=False)  # shared by every thread that marks
+        return longest
+
+    return scene.cache.get("longest edges", gpu.geometry, measure)
 
 
 def _longest_edge(corners: np.ndarray) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Primary visibility by rasterization (kernels/raster.py), on every core.
 
 :func:`visibility_buffer` gives, per sample, the nearest triangle and its depth. Sample
-positions are camera independent and cached. The rest is one launch of kernels/raster.py's
+positions are camera independent and kept process-wide. The rest is one launch of kernels/raster.py's
 visibility_pipeline per thread, the calling thread and pool threads side by side (Warp CPU
 launches run on one thread and release the GIL), meeting at barriers that spin in the kernel
 rather than return to Python: the buffer cleared and vertices projected (a share each);
@@ -29,6 +29,7 @@ import warp as wp
 from . import huge_pages
 from .errors import InputError, InputTypeError
 from .parallel import run_all, run_together, thread_count
+from .scene_cache import PROCESS_WIDE
 from pbrwarp.kernels import occlusion as ok
 from pbrwarp.kernels import raster as rk
 from pbrwarp.kernels.camera import CameraData
@@ -51,7 +52,8 @@ MIN_VERTEX_SHARE = 4096
 # the end of the first pass, for the happy Buddha and the 327k-triangle icosphere.)
 BATCHES_PER_THREAD = 64
 MAX_BATCH = 2048
-# Sample-position arrays kept for reuse (they depend on the image size, spp and seed only).
+# Sample-position arrays kept for reuse, process-wide: they depend on the image size, spp and seed
+# only, not on a scene.
 CACHED_SAMPLE_LAYOUTS = 4
 
 class _Scratch(threading.local):
@@ -192,32 +194,25 @@ def triangle_clusters(positions: wp.array, indices: wp.array) -> Clusters:
     return Clusters(positions, indices, lower, upper, axis, spread)
 
 
-_sample_cache: dict = {}
-_sample_cache_lock = threading.Lock()
 _NO_CULLING = wp.empty(0, dtype=wp.uint8, device="cpu")
 _NO_CLUSTERS = wp.empty(0, dtype=wp.vec3, device="cpu")
 _NO_SPREADS = wp.empty(0, dtype=wp.float32, device="cpu")
 
 
 def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
-    key = (width, height, spp, grid_m, grid_n, seed)
-    with _sample_cache_lock:  # calls may come from several Python threads at once
-        if key in _sample_cache:
-            _sample_cache[key] = _sample_cache.pop(key)  # most recently used last
-            return _sample_cache[key]
-    out = wp.empty((height, width * spp), dtype=wp.vec2, device="cpu")
+    def compute():
+        out = wp.empty((height, width * spp), dtype=wp.vec2, device="cpu")
 
-    def launch(job):
-        _, first_row, rows = job
-        wp.launch(rk.sample_positions, dim=rows * width * spp, device="cpu",
-                  inputs=[spp, grid_m, grid_n, seed, width, first_row, out])
+        def launch(job):
+            _, first_row, rows = job
+            wp.launch(rk.sample_positions, dim=rows * width * spp, device="cpu",
+                      inputs=[spp, grid_m, grid_n, seed, width, first_row, out])
 
-    run_all(launch, _chunks(height, threads), threads)
-    with _sample_cache_lock:
-        _sample_cache[key] = out
-        while len(_sample_cache) > CACHED_SAMPLE_LAYOUTS:
-            del _sample_cache[next(iter(_sample_cache))]
-    return out
+        run_all(launch, _chunks(height, threads), threads)
+        return out
+
+    layout = (width, height, spp, grid_m, grid_n, seed)
+    return PROCESS_WIDE.get(("sample positions", layout), None, compute, keep=CACHED_SAMPLE_LAYOUTS)
 
 
 def sample_positions(width: int, height: int, spp: int = 1, grid_m: int = 1, grid_n: int = 1, seed: int = 0,

@@ -12,6 +12,7 @@ from .camera import Camera
 from .errors import AssetFormatError, InputError, InputTypeError
 from .lights import DirectionalLight, PointLight, SpotLight
 from .materials import Material
+from .scene_cache import SceneCache
 from .textures import srgb_to_linear
 
 LOADABLE = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off")
@@ -129,6 +130,14 @@ class Scene:
         self.lights: list = []
         self.cameras: list[Camera] = []
         self._environment = None
+        self._cache = SceneCache()
+
+    @property
+    def cache(self) -> SceneCache:
+        """What renders derived from this scene and keep for the next (uploaded geometry, light
+        buffers, shadow maps...; pbrwarp/scene_cache.py lists it), each part rebuilt when what it
+        depends on changes; ``scene.cache.clear()`` drops it all."""
+        return self._cache
 
     @property
     def environment(self):

@@ -124,16 +124,18 @@ def light_geometry(light) -> tuple:
 def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
     """Every light's depth maps, rendered with the rasterizer and packed for the render kernel.
 
-    Kept on the scene and reused while its geometry, the lights' placement, the settings and the
-    alpha-masked materials' cut-outs stay the same: moving the camera or changing colours and
+    Kept in the scene cache and reused while its geometry, the lights' placement, the settings and
+    the alpha-masked materials' cut-outs stay the same: moving the camera or changing colours and
     intensities renders no new maps."""
     masked = [p.material for p in scene.primitives if p.material.alpha_mode == "MASK"]
-    # what decides the cut-outs the maps see through
-    masks = tuple((m.alpha_cutoff, m.base_color[3], id(m.base_color_texture)) for m in masked)
-    key = (tuple(light_geometry(light) for light in scene.lights), settings, masks)
-    cached = scene.__dict__.get("_shadow_maps")
-    if cached is not None and cached[0] is gpu.data.positions and cached[1] == key:
-        return cached[2]
+    # what decides the cut-outs the maps see through (a texture by identity, kept alive by the key)
+    masks = tuple((m.alpha_cutoff, m.base_color[3], m.base_color_texture) for m in masked)
+    key = (gpu.geometry, tuple(light_geometry(light) for light in scene.lights), settings, masks)
+    return scene.cache.get("shadow maps", key, lambda: _render_maps(scene, gpu, settings, masked, threads))
+
+
+def _render_maps(scene, gpu, settings: ShadowMap, masked: list, threads: int | None) -> ShadowMaps:
+    """build's maps, rendered anew (``masked``: the alpha-masked materials)."""
     lo, hi = scene.bounds()
     center = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
@@ -157,7 +159,6 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
     maps.light_views = wp.array(spans if spans else [(0, 0)], dtype=wp.vec2i, device="cpu")
     maps.bias = settings.bias
     maps.pcf = settings.pcf
-    scene.__dict__["_shadow_maps"] = (gpu.data.positions, key, maps)
     return maps
 
 

@@ -224,7 +224,8 @@ def clear_marks(mesh, light, offset=0.0):
     shift = np.array([offset, 0.5 * offset, -offset])
     scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), moved(LIGHTS[light], shift), shift)
     gpu = upload(scene)
-    buffers = build(scene, gpu)
+    build(scene, gpu)
+    buffers = build(scene, gpu)  # reused: a marked copy, kept from then on
     assert build(scene, gpu) is buffers
     return gpu, buffers, buffers.triangle_clear.numpy()[: buffers.triangles].astype(int)
 
@@ -392,7 +393,7 @@ def test_triangles_too_short_for_regions_are_not_sized(light):
     faces = gpu.data.indices.numpy().reshape(-1, 3)
     positions = gpu.data.positions.numpy()
     size = light_buffers.region_grid_sizes(buffers, 0, positions[faces].astype(np.float64))
-    longest = light_buffers._longest_edges(gpu, faces, positions)
+    longest = light_buffers._longest_edges(scene, gpu, faces, positions)
     shortest = light_buffers._shortest_region_triangle(buffers, 0)
     assert np.all(longest[size > 0] > shortest)
     assert np.sum(size > 0) > 0
@@ -480,7 +481,8 @@ def test_no_light_buffer_for_a_light_on_a_surface():
 
 def test_interiors_are_marked_when_the_buffers_are_first_reused():
     """A light moving every frame rebuilds its buffers every frame: the interiors' marks, which
-    pay off only over several frames, wait for the first reuse."""
+    pay off only over several frames, wait for the first reuse. They go into a copy: the buffers
+    of the first frame, which other renders may still be reading, do not change."""
     if not ASSETS.exists():
         pytest.skip("shared/assets is not beside the repository")
     scene = scene_with_floor(bunny(), LIGHTS["point"])
@@ -488,16 +490,17 @@ def test_interiors_are_marked_when_the_buffers_are_first_reused():
     buffers = build(scene, gpu)
     first = buffers.triangle_clear.numpy().copy()
     assert first.max() == int(CLEAR)
-    build(scene, gpu)
-    reused = buffers.triangle_clear.numpy()
+    reused = build(scene, gpu).triangle_clear.numpy()
+    assert np.array_equal(buffers.triangle_clear.numpy(), first)
     assert np.array_equal(reused[reused < int(INTERIOR_CLEAR)], first[reused < int(INTERIOR_CLEAR)])
     assert (reused >= int(INTERIOR_CLEAR)).mean() >= 0.2
     assert (reused >= int(REGIONS_CLEAR)).sum() == 2  # the floor's two triangles
 
 
 def test_marking_interiors_again_changes_nothing(monkeypatch):
-    """mark_interiors on buffers already marked keeps every mark and the region grids they point
-    at (with regions for every triangle left unmarked, a second marking would find new ones)."""
+    """mark_interiors on buffers already marked copies every mark and the region grids they point
+    at (with regions for every triangle left unmarked, a second marking would find new ones), and
+    leaves the buffers it was given as they were."""
     import pbrwarp.light_buffers as light_buffers
 
     monkeypatch.setattr(light_buffers, "MIN_REGION_GRID", 1)
@@ -508,10 +511,11 @@ def test_marking_interiors_again_changes_nothing(monkeypatch):
     marks = buffers.triangle_clear.numpy().copy()
     grids, flags = buffers.region_grids.numpy().copy(), buffers.region_clear.numpy().copy()
     assert marks.max() >= int(REGIONS_CLEAR)
-    light_buffers.mark_interiors(buffers, gpu, 2, light_buffers.front_only_faces(scene, gpu))
-    assert np.array_equal(buffers.triangle_clear.numpy(), marks)
-    assert np.array_equal(buffers.region_grids.numpy(), grids)
-    assert np.array_equal(buffers.region_clear.numpy(), flags)
+    again = light_buffers.mark_interiors(scene, gpu, buffers, 2)
+    for marked in (buffers, again):
+        assert np.array_equal(marked.triangle_clear.numpy(), marks)
+        assert np.array_equal(marked.region_grids.numpy(), grids)
+        assert np.array_equal(marked.region_clear.numpy(), flags)
 
 
 def test_only_lights_outside_a_closed_mesh_leave_its_back_faces_unlit():
@@ -622,11 +626,13 @@ def test_a_floor_seen_only_from_below_the_light_gets_no_marks(double_sided, monk
 def test_buffers_are_reused_until_lights_or_geometry_move():
     scene = scene_with_floor(icosphere(3), pw.PointLight(position=(2.0, 3.0, 2.0), intensity=40.0))
     first = build(scene, upload(scene))
-    assert build(scene, upload(scene)) is first
+    marked = build(scene, upload(scene))  # the first reuse: a marked copy of the same lists
+    assert marked.cell_faces is first.cell_faces and marked.triangle_clear is not first.triangle_clear
+    assert build(scene, upload(scene)) is marked
     scene.lights[0].intensity = 10.0
-    assert build(scene, upload(scene)) is first
+    assert build(scene, upload(scene)) is marked
     scene.lights[0].position = (2.0, 3.0, 1.0)
-    assert build(scene, upload(scene)) is not first
+    assert build(scene, upload(scene)) is not marked
 
 
 @pytest.mark.parametrize("light", ["point", "directional", "wide spot"])

@@ -83,14 +83,20 @@ def test_lit_floor_has_no_self_shadowing():
 
 def test_maps_are_reused_until_lights_or_geometry_move():
     scene, cam = floor_and_blocks(LIGHTS["point"])
+    from pbrwarp.gpu_scene import upload
+    from pbrwarp.shadow_maps import build
+
+    def kept():
+        return build(scene, upload(scene), pw.ShadowMap(), None)
+
     render_checked(scene, cam, size=(32, 24), shadows="map")
-    first = scene.__dict__["_shadow_maps"][2]
+    first = kept()
     scene.lights[0].intensity = 80.0
     render_checked(scene, pw.Camera.look_at(eye=(1, 5, 6), target=(0, -1, 0)), size=(32, 24), shadows="map")
-    assert scene.__dict__["_shadow_maps"][2] is first
+    assert kept() is first
     scene.lights[0].position = (1.0, 3.5, 1.0)
     render_checked(scene, cam, size=(32, 24), shadows="map")
-    assert scene.__dict__["_shadow_maps"][2] is not first
+    assert kept() is not first
 
 
 def test_settings_are_validated_and_explained():
