@@ -25,7 +25,6 @@ import dataclasses
 import os
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import trimesh
@@ -39,7 +38,6 @@ from pbrwarp import meshes  # noqa: E402
 from pbrwarp.brdf import PRESETS  # noqa: E402
 from pbrwarp.kernels import stages  # noqa: E402
 
-ASSETS = Path(__file__).resolve().parents[1].parent / "shared" / "assets"
 DEFAULT = pw.BRDF()
 REFERENCE = PRESETS["reference"]
 FAMILY_RUNGS = {
@@ -62,7 +60,7 @@ def report_scenes():
     grazing.add_mesh(trimesh.creation.box(extents=(40.0, 0.1, 40.0)), pw.Material(base_color=(0.3, 0.3, 0.35), roughness=0.25))
     grazing.add_light(pw.DirectionalLight(direction=(0.0, -0.2, 1.0), intensity=5.0))
     grazing.add_light(pw.PointLight(position=(3.0, 1.0, -8.0), intensity=60.0))
-    textured_path = ASSETS / "gltf/NormalTangentTest/glTF-Binary/NormalTangentTest.glb"
+    textured_path = meshes.ASSETS / "gltf/NormalTangentTest/glTF-Binary/NormalTangentTest.glb"
     if textured_path.exists():
         textured = pw.Scene.load(textured_path)
     else:
@@ -233,7 +231,7 @@ def ibl_scene():
     scene = meshes.sphere_grid(5, 5, base_color=(0.9, 0.6, 0.2), subdivisions=3)
     floor = trimesh.Trimesh([[-8, -6.3, -3], [8, -6.3, -3], [8, -6.3, 3], [-8, -6.3, 3]], [[0, 2, 1], [0, 3, 2]])
     scene.add_mesh(floor, pw.Material(base_color=(0.5, 0.5, 0.5), roughness=0.8))
-    hdr = ASSETS / "hdr" / "venice_sunset_1k.hdr"
+    hdr = meshes.ASSETS / "hdr" / "venice_sunset_1k.hdr"
     try:
         scene.environment = pw.Environment.load(hdr)
     except (pw.PbrwarpError, ImportError):

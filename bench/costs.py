@@ -22,19 +22,18 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import command_line, median_time, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
-from pbrwarp.meshes import ASSETS, demo_scene  # noqa: E402
-
-HDR = ASSETS / "hdr" / "venice_sunset_1k.hdr"
+from pbrwarp.meshes import asset, demo_scene  # noqa: E402
 
 
 def demo_rows(repeats):
+    hdr = asset("hdr/venice_sunset_1k.hdr")  # from the shared assets: a clear error when they are missing
     scene, camera = demo_scene()
 
     def render(width=960, height=540, **options):
         return pw.render(scene, camera, width=width, height=height, spp=4, progress=False, **options)
 
     rows = [("demo render, 960×540, 4 spp", 1e3 * median_time(render, repeats))]
-    scene.environment = pw.Environment.load(HDR)
+    scene.environment = pw.Environment.load(hdr)
     t0 = time.perf_counter()
     render()
     rows.append(("demo render with the Venice HDR, first (prefiltering included)", 1e3 * (time.perf_counter() - t0)))

@@ -28,16 +28,15 @@ from common import command_line, median_time, write_results  # noqa: E402
 import pbrwarp as pw  # noqa: E402
 from pbrwarp.kernels import stages  # noqa: E402
 from pbrwarp.gpu_scene import upload  # noqa: E402
+from pbrwarp.meshes import ASSETS  # noqa: E402
 from pbrwarp.render import _camera_data  # noqa: E402
-
-ASSETS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "assets", "meshes")
 
 
 def test_meshes(quick: bool):
     sphere = trimesh.creation.icosphere(subdivisions=4 if quick else 6)
     meshes = {f"icosphere ({len(sphere.faces):,} tris)": sphere}
-    bunny = os.path.join(ASSETS, "stanford-bunny.obj")
-    if os.path.exists(bunny):
+    bunny = ASSETS / "meshes" / "stanford-bunny.obj"
+    if bunny.exists():  # from the shared assets beside the clone; without them, the icosphere alone
         mesh = trimesh.load(bunny, force="mesh")
         meshes[f"stanford bunny ({len(mesh.faces):,} tris)"] = mesh
     return meshes

@@ -25,11 +25,14 @@ import numpy as np
 import pbrwarp as pw
 
 __all__ = [
-    "ASSETS", "DEMO_BACKGROUND", "brick_textures", "bunny", "demo_scene", "height_to_normal_map", "icosphere",
-    "mesh_scene", "normal_mapped_tile", "normal_mapped_torus", "sphere_grid",
+    "ASSETS", "DEMO_BACKGROUND", "SAMPLES", "brick_textures", "bunny", "demo_scene", "height_to_normal_map",
+    "icosphere", "mesh_scene", "normal_mapped_tile", "normal_mapped_torus", "sphere_grid",
 ]
 
-# Shared assets live beside the repository, not in it: <repo>/../shared/assets.
+# Sample assets installed with pbrwarp (SOURCES.md in this folder says where each comes from).
+SAMPLES = Path(__file__).resolve().parent
+# The larger public assets the benchmarks read (the full-size scanned meshes, the 1k HDRs, the
+# Khronos glTF samples) are not part of pbrwarp: they live beside a clone, in ../shared/assets.
 ASSETS = Path(__file__).resolve().parents[1].parent / "shared" / "assets"
 
 # Background radiance the demo is meant to be rendered over (``pbrwarp demo`` uses it): a
@@ -277,19 +280,22 @@ def demo_scene() -> tuple[pw.Scene, pw.Camera]:
 
 # ---------------------------------------------------------------------- benchmark meshes
 def asset(relative: str) -> Path:
-    """The path of a shared asset (``meshes/bunny-decimated.off`` etc.); AssetNotFoundError if missing."""
+    """The path of a shared asset (``meshes/stanford-bunny.obj`` etc.) under :data:`ASSETS`;
+    :class:`pw.AssetNotFoundError` if it is missing."""
     path = ASSETS / relative
     if not path.is_file():
-        raise pw.AssetNotFoundError(f"shared asset not found: {path} (expected under {ASSETS})")
+        raise pw.AssetNotFoundError(f"shared asset not found: {path} (the larger assets are not installed "
+                                    f"with pbrwarp: they are read from {ASSETS}, beside the clone)")
     return path
 
 
 def bunny(decimated: bool = True):
-    """The Stanford bunny as a ``trimesh.Trimesh``: the decimated OFF (fast) or the full OBJ.
-    Raises :class:`pw.AssetNotFoundError` when the shared assets are not installed."""
+    """The Stanford bunny as a ``trimesh.Trimesh``: the decimated one installed with pbrwarp (6,966
+    triangles, watertight), or with ``decimated=False`` the full 69,451-triangle scan from the shared
+    assets (:class:`pw.AssetNotFoundError` when they are not beside the clone)."""
     import trimesh
 
-    path = asset("meshes/bunny-decimated.off" if decimated else "meshes/stanford-bunny.obj")
+    path = SAMPLES / "bunny-decimated.off" if decimated else asset("meshes/stanford-bunny.obj")
     try:
         mesh = trimesh.load(path, force="mesh", process=True)
     except Exception as err:  # trimesh raises many types for corrupt files

@@ -1,19 +1,12 @@
-"""The real models in ../shared/assets load, render without NaN/Inf, and come out right."""
-
-from pathlib import Path
+"""The real models in the test assets load, render without NaN/Inf, and come out right."""
 
 import numpy as np
 import pytest
 
 import pbrwarp as pw
 
+from assets import ASSETS, GLTF, MESHES, mesh_file
 from scenes import render_checked
-
-ASSETS = Path(__file__).resolve().parents[1].parent / "shared" / "assets"
-GLTF = sorted(ASSETS.glob("gltf/*/glTF*/*.gl*"))
-MESHES = sorted(p for p in ASSETS.glob("meshes/**/*") if p.suffix in (".obj", ".off", ".ply", ".stl"))
-
-pytestmark = pytest.mark.skipif(not ASSETS.exists(), reason="shared/assets is not beside the repository")
 
 
 def render_small(scene, size=48, **kw):
@@ -83,8 +76,8 @@ def test_spot_texture_lands_on_the_cow(tmp_path):
     import trimesh
     from PIL import Image
 
-    mesh = trimesh.load(ASSETS / "meshes/spot/spot_triangulated.obj", force="mesh")
-    texture = Image.open(ASSETS / "meshes/spot/spot_texture.png")
+    mesh = trimesh.load(mesh_file("spot/spot_triangulated.obj"), force="mesh")
+    texture = Image.open(mesh_file("spot/spot_texture.png"))
     scene = pw.Scene()
     scene.add_mesh(mesh, pw.Material(base_color_texture=texture, roughness=0.6))
     frame = render_small(scene, size=64)

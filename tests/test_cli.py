@@ -72,11 +72,11 @@ def test_shadow_maps_raster_and_quality_options(out_dir, capsys):
 
 
 def test_environment_option(out_dir, capsys):
-    from pbrwarp.meshes import ASSETS
+    from assets import hdr
 
-    hdr = ASSETS / "hdr" / "venice_sunset_1k.hdr"
+    venice = hdr("venice_sunset")
     out = out_dir / "demo.png"
-    assert main(["demo", "-o", str(out), "--size", "48x27", "--env", str(hdr), "--env-intensity", "0.5", "--explain"]) == 0
+    assert main(["demo", "-o", str(out), "--size", "48x27", "--env", str(venice), "--env-intensity", "0.5", "--explain"]) == 0
     assert "environment lighting" in capsys.readouterr().out
     assert np.asarray(Image.open(out))[0, 0].max() > 0  # the sky behind the spheres
     assert main(["demo", "-o", str(out), "--env", str(out_dir / "missing.hdr")]) == 2

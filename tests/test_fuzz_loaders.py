@@ -1,7 +1,7 @@
 """Loader fuzzing: random, truncated and corrupted scene files raise a pbrwarp error or load.
 
 Every case is generated here (seeded, so the same files every run) from the real assets in
-``../shared/assets`` and from small meshes written on the spot, then loaded by one child
+the test assets and from small meshes written on the spot, then loaded by one child
 process that prints one line per case. A child is used so that a crash in native code (a
 segfault in Warp, numpy or Pillow) or a hang is reported as a failure of the case that caused it
 instead of killing pytest. The parent asserts that the child exited normally and that each case
@@ -25,13 +25,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ASSETS = Path(__file__).resolve().parents[1].parent / "shared" / "assets"
+from assets import ASSETS, mesh_file
+
 DUCK = ASSETS / "gltf" / "Duck" / "glTF-Binary" / "Duck.glb"
 BOX = ASSETS / "gltf" / "BoxTextured" / "glTF-Binary" / "BoxTextured.glb"
-MESHES = ASSETS / "meshes"
-
-pytestmark = pytest.mark.skipif(not (DUCK.exists() and BOX.exists() and MESHES.exists()),
-                                reason="shared/assets is not beside the repository")
 
 SELF = "@SELF@"  # replaced by the case's own file name
 CASE_TIMEOUT_S = 60  # one case taking this long counts as a hang
@@ -516,7 +513,7 @@ def mesh_cases(rng) -> dict[str, bytes]:
                 flipped[pos] = int(rng.integers(0, 256))
             cases[f"{stem}-flip-{i}{ext}"] = bytes(flipped)
     for name in ("suzanne.obj", "teapot.obj", "bunny-decimated.off", "spot/spot_triangulated.obj"):
-        data = (MESHES / name).read_bytes()
+        data = mesh_file(name).read_bytes()
         stem, ext = os.path.splitext(os.path.basename(name))
         for frac in (0.0005, 0.01, 0.1, 0.5, 0.9):
             cases[f"{stem}-trunc-{frac}{ext}"] = data[: int(len(data) * frac)]

@@ -4,7 +4,6 @@ split-sum DFG table vs quadrature, and the Monte Carlo sampling rungs' pdfs and 
 
 import functools
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,7 +29,8 @@ from pbrwarp.kernels.ibl import (
 )
 from pbrwarp.kernels.sh import SH_CLAMPED_COSINE_RESIDUAL
 
-HDR = str(Path(__file__).resolve().parents[1].parent / "shared" / "assets" / "hdr") + "/"
+from assets import hdr
+
 
 
 # ---------------------------------------------------------------------------- float64 references
@@ -70,8 +70,8 @@ def rotate_y(d, angle):
 
 @functools.cache
 def small_hdr(name, height=64):
-    """A shared HDR box-downsampled (solid-angle weighted) to height rows, to keep brute force cheap."""
-    texels = Environment.load(HDR + name).texels
+    """A test HDR box-downsampled (solid-angle weighted) to at most height rows, to keep brute force cheap."""
+    texels = Environment.load(hdr(name)).texels
     while texels.shape[0] > height:
         texels = downsample(texels)
     return texels
@@ -110,8 +110,8 @@ def test_uniform_white_environment_irradiance_is_pi_everywhere():
 
 
 def environments():
-    return {"sky": Environment.sky().texels, "venice_sunset": small_hdr("venice_sunset_1k.hdr"),
-            "rooitou_park": small_hdr("rooitou_park_1k.hdr"), "studio_small_03": small_hdr("studio_small_03_1k.hdr")}
+    return {"sky": Environment.sky().texels, "venice_sunset": small_hdr("venice_sunset"),
+            "rooitou_park": small_hdr("rooitou_park"), "studio_small_03": small_hdr("studio_small_03")}
 
 
 @pytest.mark.parametrize("name", ["sky", "venice_sunset", "rooitou_park", "studio_small_03"])
@@ -182,7 +182,7 @@ def brute_force_prefiltered(texels, r, roughness):
 def test_prefiltered_levels_against_brute_force_prefiltering(name, tolerance):
     """At each level's texel centres (no interpolation between texels or levels), the mean relative
     error over random texels; the park's 58,000-radiance sun is the hard case for the sampled level."""
-    texels = small_hdr("rooitou_park_1k.hdr", 256) if name == "rooitou_park" else Environment.sky().texels
+    texels = small_hdr("rooitou_park", 256) if name == "rooitou_park" else Environment.sky().texels
     env = Environment(texels)
     levels = env.data().radiance
     widths = levels.width.numpy()

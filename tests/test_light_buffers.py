@@ -19,8 +19,9 @@ from pbrwarp.kernels.light_buffer import (CLEAR, INTERIOR_CLEAR, INTERIOR_SHRINK
 from pbrwarp.kernels.robust import RAY_FAR, SHADOW_RAY_SHORTENING, offset_ray_origin, triangle_hit_error
 from pbrwarp.kernels.scene_data import SceneData
 from pbrwarp.light_buffers import build, no_light_buffers
-from pbrwarp.meshes import ASSETS, bunny, icosphere
+from pbrwarp.meshes import bunny, icosphere
 
+from assets import GLTF
 from scenes import render_checked
 
 
@@ -155,8 +156,6 @@ def assert_verdicts_are_the_bvhs(scene):
                          ids=["icosphere", "bunny", "icosphere 1e4 from the origin"])
 def test_light_buffer_verdicts_are_the_bvhs(light, mesh, offset):
     """Far from the origin the float32 shadow rays miss the light by more: still no verdict differs."""
-    if mesh == "bunny" and not ASSETS.exists():
-        pytest.skip("shared/assets is not beside the repository")
     shift = np.array([offset, 0.5 * offset, -offset])
     scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), moved(LIGHTS[light], shift),
                              shift)
@@ -219,8 +218,6 @@ def clear_marks(mesh, light, offset=0.0):
     """(uploaded scene, light buffers, per triangle its mark for the light) of ``mesh`` on the floor
     (all moved by ``offset`` times (1, 0.5, -1)), once the buffers were reused (which marks
     interiors and regions)."""
-    if mesh == "bunny" and not ASSETS.exists():
-        pytest.skip("shared/assets is not beside the repository")
     shift = np.array([offset, 0.5 * offset, -offset])
     scene = scene_with_floor(icosphere(5) if mesh == "icosphere" else bunny(), moved(LIGHTS[light], shift), shift)
     gpu = upload(scene)
@@ -483,8 +480,6 @@ def test_interiors_are_marked_when_the_buffers_are_first_reused():
     """A light moving every frame rebuilds its buffers every frame: the interiors' marks, which
     pay off only over several frames, wait for the first reuse. They go into a copy: the buffers
     of the first frame, which other renders may still be reading, do not change."""
-    if not ASSETS.exists():
-        pytest.skip("shared/assets is not beside the repository")
     scene = scene_with_floor(bunny(), LIGHTS["point"])
     gpu = upload(scene)
     buffers = build(scene, gpu)
@@ -637,7 +632,7 @@ def test_buffers_are_reused_until_lights_or_geometry_move():
 
 @pytest.mark.parametrize("light", ["point", "directional", "wide spot"])
 def test_rendered_shadows_do_not_depend_on_the_light_buffers(light, monkeypatch):
-    scene = scene_with_floor(bunny() if ASSETS.exists() else icosphere(5), LIGHTS[light])
+    scene = scene_with_floor(bunny(), LIGHTS[light])
     cam = pw.Camera.look_at(eye=(0.0, 0.8, 3.2), target=(0.0, -0.2, 0.0))
     assert_same_shadows_as_the_bvh(scene, cam, (160, 120), monkeypatch)
 
@@ -651,9 +646,6 @@ def test_a_light_over_the_entry_budget_leaves_its_rays_to_the_bvh(monkeypatch):
     monkeypatch.setattr(light_buffers, "MAX_ENTRIES_PER_TRIANGLE", 0)
     buffers = build(scene, upload(scene))
     assert [tuple(s) for s in buffers.light_views.numpy()] == [(0, 0), (0, 0)]
-
-
-GLTF = sorted(ASSETS.glob("gltf/*/glTF*/*.gl*"))
 
 
 @pytest.mark.parametrize("path", GLTF, ids=[p.name for p in GLTF])

@@ -103,10 +103,7 @@ def test_missing_asset_raises_asset_not_found():
 
 
 def test_bunny():
-    try:
-        mesh = meshes.bunny()
-    except pw.AssetNotFoundError:
-        pytest.skip("shared assets not installed")
+    mesh = meshes.bunny()
     assert len(mesh.faces) > 1000
     lo, hi = mesh.bounds
     assert np.all(hi > lo)

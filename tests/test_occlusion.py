@@ -12,7 +12,7 @@ from pbrwarp.errors import InputError
 from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels import occlusion as ok
-from pbrwarp.meshes import ASSETS, bunny, icosphere
+from pbrwarp.meshes import bunny, icosphere
 from pbrwarp.raster import NO_TRIANGLE, CLUSTER_SIZE, projection, triangle_clusters, visibility_buffer
 from test_raster import (GLTF, camera_coordinates, camera_data, mesh_geometry, random_cameras, scene_of,
                          screen_coordinates)
@@ -28,7 +28,7 @@ def triangles_of(positions, indices):
 
 
 def test_cluster_bounds_hold_their_triangles_and_normals():
-    positions, indices, clusters = uploaded(scene_of(bunny() if ASSETS.exists() else icosphere(5)))
+    positions, indices, clusters = uploaded(scene_of(bunny()))
     corners = triangles_of(positions, indices)
     n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     lower, upper = clusters.lower.numpy(), clusters.upper.numpy()
@@ -110,7 +110,7 @@ def test_cluster_tests_are_conservative_against_float64_geometry():
     the image; one given a rectangle and nearest depth has every vertex no nearer and every
     sample its vertices' screen bounds hold in that rectangle; one given an empty rectangle
     holds no sample of the image."""
-    scene = scene_of(bunny() if ASSETS.exists() else icosphere(5))
+    scene = scene_of(bunny())
     positions, indices, clusters = uploaded(scene)
     corners = triangles_of(positions, indices)
     normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
@@ -247,8 +247,6 @@ def culled_buffers_equal_unculled(scene, cameras, width, height):
 def test_culling_clusters_leaves_the_buffer_unchanged(name):
     """Bit for bit, over random cameras (some inside the model), one and four samples per pixel,
     with and without back faces flagged for culling; and culling happened."""
-    if name != "icosphere" and not ASSETS.exists():
-        pytest.skip("shared assets not available")
     scene = OCCLUDING_SCENES[name]()
     # few samples for the triangles, so that the occlusion pass pays even for the small models
     totals = culled_buffers_equal_unculled(scene, random_cameras(scene, 20, seed=5), 112, 84)

@@ -20,11 +20,12 @@ from pbrwarp.kernels import raster as rk
 from pbrwarp.kernels.raster import covered_steps, ray_triangle_intersection, visible_triangle
 from pbrwarp.kernels.robust import RAY_FAR
 from pbrwarp.kernels.sampling import multi_jittered_sample
-from pbrwarp.meshes import ASSETS, bunny, icosphere
+from pbrwarp.meshes import bunny, icosphere
 from pbrwarp.raster import decode, projection, sample_positions, visibility_buffer
 from pbrwarp.render import _camera_data, _stratification_grid
 
-GLTF = sorted(ASSETS.glob("gltf/*/glTF*/*.gl*"))
+from assets import GLTF
+
 # A disagreement "on an edge" lies this close (pixels) to an edge of one of the two triangles:
 # vertices and samples are snapped to 1/4096 pixel, and float32 rays err by ~1e-4 pixel.
 EDGE_TOLERANCE_PX = 2e-3
@@ -213,8 +214,6 @@ SCENES = {
 
 @pytest.mark.parametrize("name", SCENES)
 def test_same_triangle_as_the_ray_caster(name):
-    if name != "icosphere" and not ASSETS.exists():
-        pytest.skip("shared/assets is not beside the repository")
     scene = SCENES[name]()
     check_agreement(Geometry(scene), random_cameras(scene, 20, seed=len(name)))
 
@@ -232,7 +231,7 @@ def test_supersampling_uses_the_ray_casters_sample_positions(spp):
 
 def test_intersection_is_bitwise_mesh_query_ray():
     """ray_triangle_intersection gives the very t, u, v mesh_query_ray reports for its hit."""
-    scene = scene_of(bunny() if ASSETS.exists() else icosphere(4))
+    scene = scene_of(bunny())
     geom = Geometry(scene)
     for camera in random_cameras(scene, 5, seed=1):
         cam = camera_data(camera)
@@ -463,7 +462,7 @@ def test_both_facings_and_no_degenerate_coverage():
 def test_orthographic_view_sees_what_parallel_rays_hit():
     """Directional shadow maps: the parallel projection names the triangle a ray along the view
     direction from the view plane hits, at its distance from that plane."""
-    scene = scene_of(bunny() if ASSETS.exists() else icosphere(4))
+    scene = scene_of(bunny())
     geom = Geometry(scene)
     lo, hi = scene.bounds()
     centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
@@ -497,7 +496,7 @@ def test_orthographic_view_sees_what_parallel_rays_hit():
 @pytest.mark.parametrize("spp", [1, 4])
 def test_thread_count_does_not_change_the_buffer(spp):
     """Also where small triangles are drawn by several threads at once, with atomic minima."""
-    scene = scene_of(bunny() if ASSETS.exists() else icosphere(5))
+    scene = scene_of(bunny())
     geom = Geometry(scene)
     grid_m, grid_n = _stratification_grid(spp)
     for camera in random_cameras(scene, 3, seed=4):

@@ -10,6 +10,7 @@ from pbrwarp import meshes
 from pbrwarp.features import scene_features
 from pbrwarp.gpu_scene import upload
 
+from assets import ASSETS, mesh_file
 from scenes import render_checked
 from test_specialize import scenes
 
@@ -35,14 +36,15 @@ def test_raster_and_raycast_render_the_same_image(name, scene, absent, spp):
     assert_same_image_where_the_paths_agree(scene, cam, (64, 48), spp)
 
 
-@pytest.mark.parametrize("asset", ["gltf/WaterBottle/glTF/WaterBottle.gltf", "gltf/Suzanne/glTF/Suzanne.gltf",
-                                   "meshes/bunny-decimated.off"])
+@pytest.mark.parametrize("asset", [ASSETS / "gltf/WaterBottle/glTF/WaterBottle.gltf",
+                                   ASSETS / "gltf/Suzanne/glTF/Suzanne.gltf", mesh_file("bunny-decimated.off")],
+                         ids=lambda path: path.name)
 def test_pixels_whose_samples_pick_the_same_triangle_shade_identically(asset):
     """Where raster and ray caster name the same triangle for a pixel's sample, the shaded pixel is
     the same to 1e-6: the hit is recomputed by the same ray-triangle test."""
     from test_raster import Geometry, camera_data, cast, random_cameras, raster
 
-    scene = pw.Scene.load(meshes.ASSETS / asset)
+    scene = pw.Scene.load(asset)
     scene.add_light(pw.PointLight(position=tuple(scene.bounds()[1] * 2.0 + 1.0), intensity=50.0))
     geom = Geometry(scene)
     for camera in random_cameras(scene, 4, seed=5):

@@ -1,0 +1,65 @@
+"""Where the tests' assets are: this folder, or the larger set that PBRWARP_TEST_ASSETS names.
+
+This folder holds small copies of public models (SOURCES.md: origin, licence, changes), laid out
+as the shared asset set is (``gltf/<Model>/glTF*/``, ``hdr/``, ``meshes/``); the decimated bunny
+is installed with pbrwarp (``pbrwarp.meshes.SAMPLES``). With ``PBRWARP_TEST_ASSETS=DIR`` (e.g.
+``../shared/assets``) the same tests run over DIR instead: the whole glTF sample set, the 1k HDRs
+and the full-size scanned meshes.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from pbrwarp.meshes import SAMPLES
+
+VARIABLE = "PBRWARP_TEST_ASSETS"
+IN_REPO = Path(__file__).resolve().parent
+
+
+def _extended() -> Path | None:
+    value = os.environ.get(VARIABLE)
+    if not value:
+        return None
+    folder = Path(value).expanduser().resolve()
+    if not (folder / "gltf").is_dir():
+        import pytest
+
+        raise pytest.UsageError(f"{VARIABLE}={value}: no gltf/ folder there; point it at the shared assets "
+                                f"(e.g. {VARIABLE}=../shared/assets) or unset it to use tests/assets")
+    return folder
+
+
+EXTENDED = _extended()
+ASSETS = EXTENDED or IN_REPO
+# The in-repo meshes: this folder's and the samples pbrwarp installs (the decimated bunny).
+_MESH_FOLDERS = [EXTENDED / "meshes"] if EXTENDED else [IN_REPO / "meshes", SAMPLES]
+MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl")
+
+GLTF = sorted(ASSETS.glob("gltf/*/glTF*/*.gl[tb]*"))
+MESHES = sorted(p for folder in _MESH_FOLDERS for p in folder.rglob("*") if p.suffix in MESH_SUFFIXES)
+
+
+def mesh_file(relative: str) -> Path:
+    """The file ``relative`` in the test meshes (``"teapot.obj"``, ``"spot/spot_texture.png"``, ...)."""
+    for folder in _MESH_FOLDERS:
+        if (folder / relative).is_file():
+            return folder / relative
+    raise FileNotFoundError(f"no test mesh {relative!r} in {', '.join(map(str, _MESH_FOLDERS))}")
+
+
+def hdr(name: str) -> Path:
+    """The HDR environment ``name`` (``"venice_sunset"``): 1024 x 512 from PBRWARP_TEST_ASSETS, else
+    this folder's smaller copy."""
+    found = sorted(ASSETS.glob(f"hdr/{name}_*.hdr"))
+    if not found:
+        raise FileNotFoundError(f"no HDR {name!r} in {ASSETS / 'hdr'}")
+    return found[0]
+
+
+def describe() -> str:
+    """One line for pytest's header: which assets the run uses."""
+    if EXTENDED:
+        return f"assets: {EXTENDED} ({VARIABLE})"
+    return f"assets: {IN_REPO} (set {VARIABLE}=../shared/assets for the full sample set)"
