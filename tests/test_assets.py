@@ -5,7 +5,7 @@ import pytest
 
 import pbrwarp as pw
 
-from assets import ASSETS, GLTF, MESHES, mesh_file
+from assets import ASSETS, GLTF, MESHES, asset_id, mesh_file
 from scenes import render_checked
 
 
@@ -16,7 +16,7 @@ def render_small(scene, size=48, **kw):
     return render_checked(scene, pw.Camera.frame(scene), size=(size, size), **kw)
 
 
-@pytest.mark.parametrize("path", GLTF + MESHES, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", GLTF + MESHES, ids=asset_id)
 def test_every_asset_loads_and_renders_finite(path):
     scene = pw.Scene.load(path)
     assert scene.triangle_count > 0

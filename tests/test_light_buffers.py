@@ -21,7 +21,7 @@ from pbrwarp.kernels.scene_data import SceneData
 from pbrwarp.light_buffers import build, no_light_buffers
 from pbrwarp.meshes import bunny, icosphere
 
-from assets import GLTF
+from assets import GLTF, asset_id
 from scenes import render_checked
 
 
@@ -648,7 +648,7 @@ def test_a_light_over_the_entry_budget_leaves_its_rays_to_the_bvh(monkeypatch):
     assert [tuple(s) for s in buffers.light_views.numpy()] == [(0, 0), (0, 0)]
 
 
-@pytest.mark.parametrize("path", GLTF, ids=[p.name for p in GLTF])
+@pytest.mark.parametrize("path", GLTF, ids=asset_id)
 def test_every_asset_renders_the_same_shadows_with_and_without_light_buffers(path, monkeypatch):
     scene = pw.Scene.load(path)
     lo, hi = scene.bounds()

@@ -24,7 +24,7 @@ from pbrwarp.meshes import bunny, icosphere
 from pbrwarp.raster import decode, projection, sample_positions, visibility_buffer
 from pbrwarp.render import _camera_data, _stratification_grid
 
-from assets import GLTF
+from assets import GLTF, asset_id
 
 # A disagreement "on an edge" lies this close (pixels) to an edge of one of the two triangles:
 # vertices and samples are snapped to 1/4096 pixel, and float32 rays err by ~1e-4 pixel.
@@ -208,7 +208,7 @@ def scene_of(mesh):
 SCENES = {
     "icosphere": lambda: scene_of(icosphere(4)),
     "bunny": lambda: scene_of(bunny()),
-    **{path.name: (lambda path=path: pw.Scene.load(path)) for path in GLTF},
+    **{asset_id(path): (lambda path=path: pw.Scene.load(path)) for path in GLTF},
 }
 
 

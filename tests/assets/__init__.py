@@ -3,8 +3,10 @@
 This folder holds small copies of public models (SOURCES.md: origin, licence, changes), laid out
 as the shared asset set is (``gltf/<Model>/glTF*/``, ``hdr/``, ``meshes/``); the decimated bunny
 is installed with pbrwarp (``pbrwarp.meshes.SAMPLES``). With ``PBRWARP_TEST_ASSETS=DIR`` (e.g.
-``../shared/assets``) the same tests run over DIR instead: the whole glTF sample set, the 1k HDRs
-and the full-size scanned meshes.
+``../shared/assets``) the tests over every model and mesh (GLTF, MESHES) run over DIR's too: the
+whole glTF sample set and the full-size scanned meshes, besides the small copies here, so that a
+run with the variable also proves what a bare clone runs; single named files (ASSETS, hdr) then
+come from DIR: the full-size models and the 1k HDRs.
 """
 
 from __future__ import annotations
@@ -34,11 +36,26 @@ def _extended() -> Path | None:
 EXTENDED = _extended()
 ASSETS = EXTENDED or IN_REPO
 # The in-repo meshes: this folder's and the samples pbrwarp installs (the decimated bunny).
-_MESH_FOLDERS = [EXTENDED / "meshes"] if EXTENDED else [IN_REPO / "meshes", SAMPLES]
+_IN_REPO_MESH_FOLDERS = [IN_REPO / "meshes", SAMPLES]
+_MESH_FOLDERS = [EXTENDED / "meshes"] if EXTENDED else _IN_REPO_MESH_FOLDERS
 MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl")
 
-GLTF = sorted(ASSETS.glob("gltf/*/glTF*/*.gl[tb]*"))
-MESHES = sorted(p for folder in _MESH_FOLDERS for p in folder.rglob("*") if p.suffix in MESH_SUFFIXES)
+
+def _models(root: Path) -> list[Path]:
+    return sorted(root.glob("gltf/*/glTF*/*.gl[tb]*"))
+
+
+def _meshes(folders) -> list[Path]:
+    return sorted(p for folder in folders for p in folder.rglob("*") if p.suffix in MESH_SUFFIXES)
+
+
+GLTF = _models(IN_REPO) + (_models(EXTENDED) if EXTENDED else [])
+MESHES = _meshes(_IN_REPO_MESH_FOLDERS) + (_meshes([EXTENDED / "meshes"]) if EXTENDED else [])
+
+
+def asset_id(path: Path) -> str:
+    """A test id for an asset file: its name, prefixed "shared:" when it comes from PBRWARP_TEST_ASSETS."""
+    return f"shared:{path.name}" if EXTENDED and EXTENDED in path.parents else path.name
 
 
 def mesh_file(relative: str) -> Path:
