@@ -512,9 +512,13 @@ def mesh_cases(rng) -> dict[str, bytes]:
             for pos in rng.integers(0, len(flipped), rng.integers(1, 12)):
                 flipped[pos] = int(rng.integers(0, 256))
             cases[f"{stem}-flip-{i}{ext}"] = bytes(flipped)
-    for name in ("suzanne.obj", "teapot.obj", "bunny-decimated.off", "spot/spot_triangulated.obj"):
-        data = mesh_file(name).read_bytes()
-        stem, ext = os.path.splitext(os.path.basename(name))
+    # real meshes: Suzanne (CC0 glTF) written as OBJ with UVs and normals, and two files as shipped
+    suzanne = trimesh.load(ASSETS / "gltf/Suzanne/glTF/Suzanne.gltf", force="mesh")
+    real = {"suzanne.obj": suzanne.export(file_type="obj").encode()}
+    real.update((os.path.basename(name), mesh_file(name).read_bytes())
+                for name in ("bunny-decimated.off", "spot/spot_triangulated.obj"))
+    for name, data in real.items():
+        stem, ext = os.path.splitext(name)
         for frac in (0.0005, 0.01, 0.1, 0.5, 0.9):
             cases[f"{stem}-trunc-{frac}{ext}"] = data[: int(len(data) * frac)]
         cut = int(rng.integers(1, len(data)))

@@ -41,7 +41,7 @@ COPIED = [
     "gltf/TwoSidedPlane/glTF/TwoSidedPlane_Normal.png",
     "gltf/Suzanne/glTF/Suzanne.gltf", "gltf/Suzanne/glTF/Suzanne.bin",
     "gltf/WaterBottle/glTF/WaterBottle.gltf", "gltf/WaterBottle/glTF/WaterBottle.bin",
-    "meshes/suzanne.obj", "meshes/teapot.obj", "meshes/spot/spot_triangulated.obj", "meshes/spot/spot_texture.png",
+    "meshes/spot/spot_triangulated.obj", "meshes/spot/spot_texture.png",
     "meshes/spot/README.txt",
 ]
 MODELS = ["BoxTextured", "Duck", "MetalRoughSpheresNoTextures", "NegativeScaleTest", "NormalTangentMirrorTest",
