@@ -55,28 +55,38 @@ class _Collector:
         self.passed_to.error(message)
 
 
+def _flush(stream) -> None:
+    if stream is not None:  # None when Python started without that descriptor
+        stream.flush()
+
+
 def _init_capturing_stderr() -> str:
     """``wp.init()`` with file descriptor 2 pointed at a temporary file; returns what was written
     there. Native code writes to the descriptor, not to ``sys.stderr``, so only the descriptor can
     catch it. Other threads' stderr output in that instant is caught too and written back after."""
-    sys.stderr.flush()
+    _flush(sys.stderr)
     try:
-        saved = os.dup(2)
-    except OSError:  # no stderr at all: nothing to keep quiet
+        sink = tempfile.TemporaryFile()
+    except OSError:  # nowhere to hold it: start Warp as it is
         wp.init()
         return ""
-    try:
-        with tempfile.TemporaryFile() as sink:
+    with sink:
+        try:
+            saved = os.dup(2)
+        except OSError:  # no stderr to keep quiet
+            wp.init()
+            return ""
+        try:
             os.dup2(sink.fileno(), 2)
             try:
                 wp.init()
             finally:
-                sys.stderr.flush()
+                _flush(sys.stderr)
                 os.dup2(saved, 2)
-            sink.seek(0)
-            return sink.read().decode("utf-8", errors="replace")
-    finally:
-        os.close(saved)
+        finally:
+            os.close(saved)
+        sink.seek(0)
+        return sink.read().decode("utf-8", errors="replace")
 
 
 def start_warp() -> None:
@@ -91,7 +101,10 @@ def start_warp() -> None:
     noise = "".join(line for line in captured.splitlines(keepends=True) if _NO_CUDA_DRIVER in line)
     kept = "".join(line for line in captured.splitlines(keepends=True) if _NO_CUDA_DRIVER not in line)
     if kept:
-        os.write(2, kept.encode("utf-8", errors="replace"))
+        try:
+            os.write(2, kept.encode("utf-8", errors="replace"))
+        except OSError:  # stderr closed
+            pass
     if noise:
         _held_back.append(("stderr", noise))
     if collector.info_lines:
@@ -102,7 +115,9 @@ def show_warp_messages() -> None:
     """Print what Warp said while starting quietly (once) and show its later information messages
     (module loads) from now on: the command line's ``--verbose``."""
     while _held_back:
-        stream, text = _held_back.pop(0)
-        getattr(sys, stream).write(text)
-        getattr(sys, stream).flush()
+        name, text = _held_back.pop(0)
+        stream = getattr(sys, name)
+        if stream is not None:  # None when Python started without that descriptor
+            stream.write(text)
+            stream.flush()
     wp.config.log_level = min(wp.config.log_level, wp.LOG_INFO)

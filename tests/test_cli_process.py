@@ -82,6 +82,13 @@ def test_real_messages_while_warp_starts_still_show():
     assert done.stderr == "something real\n" and done.stdout == ""
 
 
+def test_import_without_a_stderr():
+    """Python started with descriptor 2 closed has no sys.stderr; the quiet start copes."""
+    done = subprocess.run([sys.executable, "-c", "import pbrwarp; print('imported')"], cwd=ROOT, env=environment(),
+                          stdout=subprocess.PIPE, text=True, timeout=TIMEOUT, preexec_fn=lambda: os.close(2))
+    assert done.returncode == 0 and done.stdout == "imported\n"
+
+
 def test_warnings_still_show_after_a_quiet_import():
     done = python("-c", "import warnings, pbrwarp; warnings.warn('about your file')")
     assert "UserWarning: about your file" in done.stderr
