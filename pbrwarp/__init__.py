@@ -5,6 +5,11 @@
 >>> pw.render(scene, pw.Camera.frame(scene), width=512, height=512).save("out.png")
 """
 
+from .startup import start_warp
+
+start_warp()  # first, before any module below touches Warp: quiet unless PBRWARP_VERBOSE is set
+
+
 def _load_checkout_subpackages():
     """pbrwarp.kernels and pbrwarp.meshes are a checkout's top-level kernels/ and meshes/, which
     pyproject.toml maps into the installed package. Run from the checkout's root (``python -m

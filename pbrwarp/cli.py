@@ -3,28 +3,54 @@
     pbrwarp render model.glb -o out.png --size 1280x720 --spp 4 --light dir:-1,-1,-1:3
     pbrwarp demo -o demo.png
 
-Bad input (a missing file, a malformed option, a value out of range) prints one line,
-``pbrwarp: error: <message>``, to stderr and exits with status 2.
+Nothing but the command's own output and one-line notes reaches the terminal: Warp's start-up
+messages are held back (``--verbose`` or ``PBRWARP_VERBOSE=1`` shows them) and no error prints a
+traceback. Every failure is one line on stderr and an exit status (see ``EXIT_STATUS_HELP``).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import re
+import signal
 import sys
+import threading
+import traceback
+import warnings
 
 import numpy as np
 
+from . import startup
 from .camera import Camera
 from .errors import InputError, PbrwarpError
+from .frame import MAX_EXPOSURE
 from .lights import DirectionalLight, PointLight, SpotLight
 
 PROG = "pbrwarp"
+EXIT_INTERNAL_ERROR = 1
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 128 + signal.SIGINT  # 130, as a shell reports a process Ctrl-C ended
+EXIT_TERMINATED = 128 + signal.SIGTERM  # 143
 MAX_SIDE = 16384  # largest image side accepted from the command line
+FLOAT32_MAX = float(np.finfo(np.float32).max)  # the kernels compute in float32
 DEFAULT_KEY_LUX = 3.0
+
+EXIT_STATUS_HELP = f"""\
+exit status:
+  0    the image was written
+  {EXIT_INTERNAL_ERROR}    internal error, a bug in pbrwarp: run again with --verbose for the traceback
+  {EXIT_USAGE}    bad input: a missing or unreadable file, an invalid option, or an image or scene
+       too large for this machine's memory
+  {EXIT_INTERRUPTED}  interrupted (Ctrl-C)
+  {EXIT_TERMINATED}  terminated (SIGTERM)
+  Every failure prints one line to stderr and leaves no output file, whole or partial.
+environment:
+  {startup.VERBOSE_ENV}=1  as --verbose
+"""
+VERBOSE_HELP = "show Warp's start-up and kernel-module messages, and the traceback of any error"
 
 LIGHT_HELP = """\
 light specs (--light may repeat; lights from the file are kept):
@@ -42,6 +68,12 @@ class UsageError(Exception):
     """A command-line value that cannot be used; the message is shown as is."""
 
 
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread so that the command unwinds as from Ctrl-C: a save under
+    way removes its temporary file. A BaseException, like KeyboardInterrupt, so that no
+    ``except Exception`` on the way swallows it."""
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse that raises instead of printing usage and exiting, so every error is one line."""
 
@@ -57,9 +89,10 @@ def _numbers(text: str, count: int | tuple, what: str, example: str) -> list[flo
         values = [float(p) for p in parts]
     except ValueError:
         values = None
-    if values is None or len(values) not in counts or not all(math.isfinite(v) for v in values):
+    if values is None or len(values) not in counts or not all(abs(v) <= FLOAT32_MAX for v in values):
         n = " or ".join(map(str, counts))
-        raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected {n} comma-separated finite numbers, e.g. {example}")
+        raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected {n} comma-separated finite numbers "
+                                         f"(|x| <= {FLOAT32_MAX:.3g}), e.g. {example}")
     return values
 
 
@@ -88,21 +121,29 @@ def _positive_int(what: str):
     return parse
 
 
-def _finite_float(what: str):
+def _finite_float(what: str, low: float = -FLOAT32_MAX, high: float = FLOAT32_MAX):
+    """A parser of numbers from ``low`` to ``high`` (by default, any float32 value)."""
+
+    expected = ("a finite number" if (low, high) == (-FLOAT32_MAX, FLOAT32_MAX)
+                else f"a number from {low:.3g} to {high:.3g}")
+
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
             value = math.nan
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected a finite number")
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected {expected}")
         return value
 
     return parse
 
 
 def parse_fov(text: str) -> float:
-    value = _finite_float("field of view")(text)
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
     if not 0.0 < value < 180.0:
         raise argparse.ArgumentTypeError(f"invalid field of view {text!r}: expected degrees strictly between 0 and 180")
     return value
@@ -183,8 +224,10 @@ def parse_light(spec: str):
 
 # ---------------------------------------------------------------------- argument parser
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog=PROG, description="Physically based rendering of triangle meshes on the CPU (NVIDIA Warp).")
+    parser = _Parser(prog=PROG, description="Physically based rendering of triangle meshes on the CPU (NVIDIA Warp).",
+                     formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXIT_STATUS_HELP)
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("-v", "--verbose", action="store_true", help=VERBOSE_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     def output_options(p, default_size, default_spp):
@@ -197,8 +240,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"samples per pixel (default {default_spp})")
         p.add_argument("--tonemap", choices=("none", "reinhard", "aces"), default="aces",
                        help="tone map for 8-bit output (default aces)")
-        p.add_argument("--exposure", type=_finite_float("exposure"), default=0.0, metavar="EV",
-                       help="exposure in stops: radiance is scaled by 2^EV (default 0)")
+        p.add_argument("--exposure", type=_finite_float("exposure", -MAX_EXPOSURE, MAX_EXPOSURE), default=0.0,
+                       metavar="EV", help=f"exposure in stops from {-MAX_EXPOSURE:g} to {MAX_EXPOSURE:g}: "
+                                          "radiance is scaled by 2^EV (default 0)")
         p.add_argument("--no-shadows", dest="shadows", action="store_const", const=False, default=True,
                        help="render no shadows")
         p.add_argument("--shadow-maps", dest="shadows", action="store_const", const="map",
@@ -216,13 +260,15 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--env", metavar="HDR", default=None,
                        help="light the scene with an equirectangular .hdr/.exr environment, also shown as the "
                             "background unless --background is given (needs pip install 'pbrwarp[env]')")
-        p.add_argument("--env-intensity", type=_finite_float("environment intensity"), default=1.0, metavar="X",
+        p.add_argument("--env-intensity", type=_finite_float("environment intensity", 0.0), default=1.0, metavar="X",
                        help="scale of the environment's radiance (default 1)")
         p.add_argument("--explain", action="store_true",
                        help="print which effects are simulated and why the others are not, then render")
+        # also after the command; SUPPRESS keeps a --verbose given before it
+        p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP)
 
     render = sub.add_parser("render", help="render a scene file (.glb .gltf .obj .ply .stl .off)",
-                            formatter_class=argparse.RawDescriptionHelpFormatter, epilog=LIGHT_HELP)
+                            formatter_class=argparse.RawDescriptionHelpFormatter, epilog=LIGHT_HELP + EXIT_STATUS_HELP)
     render.add_argument("input", metavar="INPUT", help="scene file (.glb .gltf .obj .ply .stl .off)")
     output_options(render, (800, 600), 1)
     render.add_argument("--camera", type=parse_camera, default=None, metavar="EX,EY,EZ,TX,TY,TZ",
@@ -232,7 +278,8 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--light", type=parse_light, action="append", default=[], metavar="SPEC",
                         help="add a light (repeatable); see the light specs below")
 
-    demo = sub.add_parser("demo", help="render the built-in demo scene (sphere grid and brick torus)")
+    demo = sub.add_parser("demo", help="render the built-in demo scene (sphere grid and brick torus)",
+                          formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXIT_STATUS_HELP)
     output_options(demo, (960, 540), 4)
     return parser
 
@@ -339,16 +386,33 @@ def cmd_demo(args) -> int:
 
 
 def main(argv=None) -> int:
-    """Run the command line; returns the exit status (0 on success, 2 on bad input)."""
-    import warp as wp
-
-    # Warp's greeting and kernel-cache messages are noise on a command line; warnings stay.
-    log_level = wp.config.log_level
-    wp.config.log_level = max(log_level, wp.LOG_WARNING)
-    try:
+    """Run the command line; returns the exit status (see ``EXIT_STATUS_HELP``)."""
+    with _sigterm_raises_terminated(), warnings.catch_warnings():
+        warnings.showwarning = _show_warning
         return _main(argv)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning (something in the user's files that pbrwarp does not honour) as one line."""
+    print(f"{PROG}: warning: {' '.join(str(message).split())}", file=sys.stderr if file is None else file)
+
+
+@contextlib.contextmanager
+def _sigterm_raises_terminated():
+    """SIGTERM raises :class:`Terminated` while the command runs (signals reach the main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # one is enough: let the unwinding finish
+        raise Terminated
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
     finally:
-        wp.config.log_level = log_level
+        signal.signal(signal.SIGTERM, previous)
 
 
 # Options whose values may start with "-" (negative coordinates): argparse would take
@@ -372,20 +436,61 @@ def _glue_negative_values(argv: list[str]) -> list[str]:
 def _main(argv) -> int:
     parser = build_parser()
     argv = _glue_negative_values(list(sys.argv[1:] if argv is None else argv))
+    verbose = startup.verbose_from_environment()
     try:
         try:
             args = parser.parse_args(argv)
         except SystemExit as exit_:  # --help and --version
             return exit_.code if isinstance(exit_.code, int) else 0
-        command = {"render": cmd_render, "demo": cmd_demo}[args.command]
-        return command(args)
+        verbose = verbose or args.verbose
+        with _warp_messages(verbose):
+            command = {"render": cmd_render, "demo": cmd_demo}[args.command]
+            return command(args)
     except (UsageError, PbrwarpError, OSError, ImportError) as err:
-        message = " ".join(str(err).split()) or type(err).__name__
-        print(f"{PROG}: error: {message}", file=sys.stderr)
-        return EXIT_USAGE
+        return _fail(EXIT_USAGE, f"error: {_one_line(err)}", verbose)
+    except MemoryError as err:
+        return _fail(EXIT_USAGE, _out_of_memory(err), verbose)
     except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
-        return 130
+        return _fail(EXIT_INTERRUPTED, "interrupted", verbose)
+    except Terminated:
+        return _fail(EXIT_TERMINATED, "terminated", verbose)
+    except Exception as err:
+        if isinstance(err, RuntimeError) and str(err).startswith("Failed to allocate"):  # Warp's wording
+            return _fail(EXIT_USAGE, _out_of_memory(err), verbose)
+        return _fail(EXIT_INTERNAL_ERROR, f"internal error: {type(err).__name__}: {_one_line(err)} "
+                                          "(this is a bug in pbrwarp: run again with --verbose to see where, "
+                                          "and please report it)", verbose)
+
+
+@contextlib.contextmanager
+def _warp_messages(verbose: bool):
+    """Warp's start-up and kernel-module messages, shown while the command runs if ``verbose``."""
+    import warp as wp
+
+    level = wp.config.log_level
+    if verbose:
+        startup.show_warp_messages()
+    try:
+        yield
+    finally:
+        wp.config.log_level = level
+
+
+def _one_line(err: BaseException) -> str:
+    return " ".join(str(err).split()) or type(err).__name__
+
+
+def _out_of_memory(err: BaseException) -> str:
+    return (f"error: not enough memory ({_one_line(err)}): try a smaller --size or --spp, "
+            "or a scene with fewer triangles and smaller textures")
+
+
+def _fail(status: int, message: str, verbose: bool) -> int:
+    """Print ``message`` as one line (after the traceback, if ``verbose``) and return ``status``."""
+    if verbose:
+        traceback.print_exc()
+    print(f"{PROG}: {message}", file=sys.stderr)
+    return status
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -2,22 +2,51 @@
 
 from __future__ import annotations
 
+import math
 import os
-import tempfile
+import secrets
 from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
 
-from .errors import InputError
+from .errors import InputError, InputTypeError
 
 from pbrwarp.kernels.tonemap import TONEMAPS, tonemap_kernel
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+MAX_EXPOSURE = 64.0
+"""Largest |exposure| in stops: 2^64 spans any scene's radiance (the sun's disc is ~2^31 nits)
+and keeps the scale, and its reciprocal, finite in the float32 the tone map computes in."""
+
+# A new file only (O_EXCL: never one that exists, nor a symbolic link's target), mode 0o666 less
+# the process's umask, which the kernel applies: the same mode as any file the user creates.
+_NEW_FILE_FLAGS = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_BINARY", 0)
+
+
+def _checked_exposure(value) -> float:
+    try:
+        exposure = float(value)
+    except OverflowError:  # an integer beyond the float range
+        exposure = math.inf
+    except (TypeError, ValueError):
+        raise InputTypeError(f"exposure must be a number of stops, got {value!r}") from None
+    if not abs(exposure) <= MAX_EXPOSURE:
+        raise InputError(f"exposure must be from {-MAX_EXPOSURE:g} to {MAX_EXPOSURE:g} stops, got {exposure:g}")
+    return exposure
+
+
+def _create_hidden_file(directory: str, ext: str, created: list) -> int:
+    """Open a new file named ``.pbrwarp-<random><ext>`` in ``directory`` for writing; its name is
+    put in ``created`` just before it is made, so a caller unwinding from an exception (Ctrl-C, or
+    SIGTERM made one) in any instant after can remove it."""
+    name = os.path.join(directory, f".pbrwarp-{secrets.token_hex(8)}{ext}")
+    created.append(name)
+    try:
+        return os.open(name, _NEW_FILE_FLAGS, 0o666)
+    except FileExistsError:  # not ours to remove (a 64-bit name taken by chance or by design)
+        created.pop()
+        raise
 
 
 @dataclass
@@ -48,9 +77,7 @@ class Frame:
         ("none" clips, "reinhard", "aces"), then sRGB-encoded. NaN maps to black, Inf to white."""
         if tonemap not in TONEMAPS:
             raise InputError(f"tonemap must be one of {', '.join(TONEMAPS)}, got {tonemap!r}")
-        exposure = float(exposure)
-        if not np.isfinite(exposure):
-            raise InputError(f"exposure must be finite, got {exposure}")
+        exposure = _checked_exposure(exposure)
         source = self.rgb if rgb is None else rgb
         h, w = source.shape[:2]
         src = wp.array(np.ascontiguousarray(source, dtype=np.float32).reshape(-1, 3), dtype=wp.vec3, device="cpu")
@@ -67,11 +94,14 @@ class Frame:
         return np.concatenate([rgb8, alpha8[..., None]], axis=2)
 
     def save(self, path, exposure: float = 0.0, tonemap: str = "aces", transparent: bool = False) -> None:
-        """Write the frame atomically (a temporary file renamed into place, so a failed write
-        never leaves a half-written file). ``.png``/``.jpg``/... go through Pillow, tone mapped;
+        """Write the frame atomically: into a new hidden file ``.pbrwarp-<random><ext>`` beside
+        ``path`` (mode 0o666 less the umask, as any file the user creates), renamed onto ``path``
+        once complete; an error or an interrupt removes it, so no half-written file is left.
+        ``exposure`` is in stops, from -64 to 64. ``.png``/``.jpg``/... go through Pillow, tone mapped;
         ``.npy`` stores linear float32 RGBA (radiance + coverage) for further processing.
         ``transparent`` writes PNG alpha from coverage instead of the background colour."""
         path = os.fspath(path)
+        _checked_exposure(exposure)
         ext = os.path.splitext(path)[1].lower()
         directory = os.path.dirname(os.path.abspath(path))
         if not os.path.isdir(directory):
@@ -92,13 +122,16 @@ class Frame:
 
             def write(f):
                 image.save(f, format=fmt)
-        fd, tmp = tempfile.mkstemp(prefix=".pbrwarp-", suffix=ext, dir=directory)
+        created = []  # the temporary file, once it exists
         try:
+            fd = _create_hidden_file(directory, ext, created)
             with os.fdopen(fd, "wb") as f:
                 write(f)
-            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp's 0600 would make the image private
-            os.replace(tmp, path)
+            os.replace(created[0], path)
         except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+            for name in created:
+                try:
+                    os.unlink(name)
+                except FileNotFoundError:
+                    pass
             raise

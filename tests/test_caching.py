@@ -68,8 +68,8 @@ def test_the_upload_is_reused_until_a_material_or_light_changes():
 def test_a_new_process_loads_kernels_from_the_disk_cache():
     script = textwrap.dedent("""
         import warp as wp
-        wp.config.log_level = wp.LOG_INFO
         import trimesh, pbrwarp as pw
+        wp.config.log_level = wp.LOG_INFO  # after the import, which keeps Warp quiet
         s = pw.Scene()
         s.add_mesh(trimesh.creation.icosphere(subdivisions=1), pw.Material())
         s.add_light(pw.DirectionalLight(direction=(0, -1, -1), intensity=2.0))

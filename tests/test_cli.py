@@ -1,6 +1,9 @@
 """The pbrwarp command line, run in-process through cli.main."""
 
+import base64
+import json
 import re
+import sys
 
 import numpy as np
 import pytest
@@ -92,9 +95,12 @@ def test_transparent_png_has_alpha(obj_file, out_dir):
     assert rgba[0, 0, 3] == 0 and rgba[12, 16, 3] == 255
 
 
-def test_help_exits_zero(capsys):
+def test_help_exits_zero_and_documents_exit_statuses(capsys):
     assert main(["render", "--help"]) == 0
-    assert "point:X,Y,Z:CANDELA" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "point:X,Y,Z:CANDELA" in text
+    for words in ("--verbose", "exit status", "130", "143", "PBRWARP_VERBOSE"):
+        assert words in text
 
 
 BAD_INPUTS = {
@@ -116,6 +122,16 @@ BAD_INPUTS = {
     "transparent jpeg": (["render", "{obj}", "-o", "{out_jpg}", "--transparent"], "transparency"),
     "no command": ([], "required"),
     "not a scene": (["render", "{text}", "-o", "{out}"], "cannot read|contains no triangles"),
+    # 2^2000 overflows a float; the exposure range keeps 2^EV finite in float32 both ways
+    "exposure 2000": (["render", "{obj}", "-o", "{out}", "--exposure", "2000"], "from -64 to 64"),
+    "exposure -65": (["demo", "-o", "{out}", "--exposure", "-65"], "from -64 to 64"),
+    "exposure nan": (["demo", "-o", "{out}", "--exposure", "nan"], "from -64 to 64"),
+    "negative env intensity": (["demo", "-o", "{out}", "--env-intensity", "-1"], "from 0 to"),
+    # finite in float64 but not in the float32 the kernels compute in
+    "background beyond float32": (["demo", "-o", "{out}", "--background", "1e39,0,0"], "finite numbers"),
+    "camera beyond float32": (["render", "{obj}", "-o", "{out}", "--camera", "1e39,0,0,0,0,0"], "finite numbers"),
+    "light beyond float32": (["render", "{obj}", "-o", "{out}", "--light", "point:1e39,0,0:5"], "finite numbers"),
+    "fov beyond float32": (["render", "{obj}", "-o", "{out}", "--fov", "1e39"], "between 0 and 180"),
 }
 
 
@@ -176,3 +192,60 @@ def test_python_m_pbrwarp_runs_from_the_checkouts_root_without_an_editable_insta
     loaded = done.stdout.split("loaded:")[-1].split()[:2]
     assert loaded == [str(root / "kernels" / "__init__.py"), str(root / "meshes" / "__init__.py")]
     assert Image.open(tmp_path / "demo.png").size == (64, 36)
+
+
+def fail_render_with(monkeypatch, error):
+    """Make the CLI's render raise ``error`` (the CLI looks render up in its module when it runs)."""
+    def render(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(sys.modules["pbrwarp.render"], "render", render)
+
+
+@pytest.mark.parametrize("error", [
+    MemoryError("Unable to allocate 3.3 GiB for an array with shape (30000, 30000) and data type float32"),
+    RuntimeError("Failed to allocate 3221225472 bytes on device 'cpu'"),  # Warp's wording
+])
+def test_out_of_memory_is_one_line_exit_2(error, out_dir, monkeypatch, capsys):
+    fail_render_with(monkeypatch, error)
+    assert main(["demo", "-o", str(out_dir / "x.png")]) == 2
+    captured = capsys.readouterr()
+    assert captured.err.count("\n") == 1 and "Traceback" not in captured.err
+    assert captured.err.startswith("pbrwarp: error: not enough memory (") and str(error) in captured.err
+    assert "--size or --spp" in captured.err
+    assert list(out_dir.iterdir()) == []
+
+
+def test_internal_error_is_one_line_exit_1_and_verbose_shows_the_traceback(out_dir, monkeypatch, capsys):
+    fail_render_with(monkeypatch, ZeroDivisionError("float division by zero"))
+    assert main(["demo", "-o", str(out_dir / "x.png")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("pbrwarp: internal error: ZeroDivisionError: float division by zero")
+    assert "--verbose" in err
+    assert main(["demo", "-o", str(out_dir / "x.png"), "--verbose"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback (most recent call last):" in err and "in render" in err
+    assert err.splitlines()[-1].startswith("pbrwarp: internal error: ZeroDivisionError")
+    assert list(out_dir.iterdir()) == []
+
+
+def test_warnings_about_the_users_file_show_as_one_line(out_dir, tmp_path, capsys):
+    """A glTF camera pbrwarp cannot use is named in a warning, on one line, and the render goes on."""
+    triangle = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32).tobytes()
+    document = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0, 0, 3]}],
+        "cameras": [{"type": "orthographic", "orthographic": {"xmag": 1, "ymag": 1, "znear": 0.1, "zfar": 10}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": len(triangle)}],
+        "buffers": [{"byteLength": len(triangle),
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(triangle).decode()}],
+    }
+    model = tmp_path / "triangle.gltf"
+    model.write_text(json.dumps(document))
+    assert main(["render", str(model), "-o", str(out_dir / "t.png"), "--size", "16x16"]) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if "orthographic" in line]
+    assert len(warned) == 1 and warned[0].startswith("pbrwarp: warning: ") and "triangle.gltf" in warned[0]
