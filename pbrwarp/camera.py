@@ -11,32 +11,51 @@ from . import validate
 from .errors import InputError
 
 
+def field_of_view(value) -> float:
+    """A vertical field of view in degrees, strictly between 0 and 180."""
+    fov = validate.finite_scalar(value, "Camera fov_y")
+    if not 0.0 < fov < 180.0:
+        raise InputError(f"Camera fov_y must lie strictly between 0 and 180 degrees, got {fov}")
+    return fov
+
+
+def _view_direction(camera, value) -> tuple:
+    if not any(validate.finite_vector(value, 3, "Camera forward")):
+        raise InputError("Camera eye and target coincide: the view direction is undefined")
+    return validate.unit_vector(value, "Camera forward")
+
+
+def _image_up(forward, up) -> np.ndarray:
+    """The unit vector in the plane of ``forward`` (unit) and ``up`` perpendicular to forward."""
+    up = np.asarray(up, dtype=np.float64)
+    right = np.cross(forward, up)
+    if np.linalg.norm(right) < 1e-9 * max(np.linalg.norm(up), 1e-300):
+        raise InputError(f"Camera up {tuple(up)} is parallel to the view direction; choose another up vector")
+    right /= np.linalg.norm(right)
+    return np.cross(right, forward)
+
+
 @dataclass
-class Camera:
+class Camera(validate.Checked):
     """A pinhole camera at ``eye`` looking along ``forward``; ``fov_y`` is the vertical field of
-    view in degrees. The image's aspect ratio comes from the render size."""
+    view in degrees, strictly between 0 and 180. The image's aspect ratio comes from the render
+    size. ``forward`` is stored normalized and ``up`` made perpendicular to it (unit length, in
+    the plane of the two), also when either is set later; every field is checked when set."""
 
     eye: tuple
     forward: tuple
     up: tuple
     fov_y: float = 45.0
 
-    def __post_init__(self):
-        self.eye = validate.finite_vector(self.eye, 3, "Camera eye")
-        fwd = np.asarray(validate.finite_vector(self.forward, 3, "Camera forward"))
-        up = np.asarray(validate.finite_vector(self.up, 3, "Camera up"))
-        self.fov_y = validate.finite_scalar(self.fov_y, "Camera fov_y")
-        if not 0.0 < self.fov_y < 180.0:
-            raise InputError(f"Camera fov_y must lie strictly between 0 and 180 degrees, got {self.fov_y}")
-        if np.linalg.norm(fwd) == 0.0:
-            raise InputError("Camera eye and target coincide: the view direction is undefined")
-        fwd = fwd / np.linalg.norm(fwd)
-        right = np.cross(fwd, up)
-        if np.linalg.norm(right) < 1e-9 * max(np.linalg.norm(up), 1e-300):
-            raise InputError(f"Camera up {tuple(up)} is parallel to the view direction; choose another up vector")
-        right /= np.linalg.norm(right)
-        self.forward = tuple(float(c) for c in fwd)
-        self.up = tuple(float(c) for c in np.cross(right, fwd))
+    _checks = {
+        "eye": lambda camera, value: validate.finite_vector(value, 3, "Camera eye"),
+        "forward": _view_direction,
+        "up": lambda camera, value: validate.finite_vector(value, 3, "Camera up"),
+        "fov_y": lambda camera, value: field_of_view(value),
+    }
+
+    def _check_together(self):
+        object.__setattr__(self, "up", tuple(float(c) for c in _image_up(np.asarray(self.forward), self.up)))
 
     @property
     def right(self) -> tuple:

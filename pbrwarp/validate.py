@@ -23,6 +23,15 @@ def finite_vector(value, length: int, what: str) -> tuple[float, ...]:
     return tuple(float(x) for x in arr)
 
 
+def unit_vector(value, what: str) -> tuple[float, float, float]:
+    """``value`` (3 finite numbers, not all zero) scaled to unit length."""
+    v = np.asarray(finite_vector(value, 3, what))
+    length = np.linalg.norm(v)
+    if length == 0.0:
+        raise InputError(f"{what} must not be the zero vector")
+    return tuple(float(c) for c in v / length)
+
+
 def finite_scalar(value, what: str) -> float:
     try:
         x = float(value)
@@ -84,3 +93,43 @@ def readable_file(path, what: str, extensions: tuple, kinds: str) -> tuple[str, 
         raise AssetFormatError(f"cannot load {path}: unsupported extension {ext!r} for a {what} "
                                f"(supported: {', '.join(extensions)}, {kinds})")
     return path, ext
+
+
+
+# ---------------------------------------------------------------------- fields checked on assignment
+class Checked:
+    """Base of the scene objects (dataclasses) whose fields are checked whenever they are set: by
+    the constructor and by any later assignment, with the same check, so that an object never
+    holds a value the kernels cannot take (``light.position = (nan, 0, 0)`` raises as
+    ``PointLight(position=(nan, 0, 0))`` does).
+
+    A subclass maps field names to checks in ``_checks``, ``{name: check(obj, value) -> the value
+    to store}``, in the order the constructor runs them, and may override
+    :meth:`_check_together` for rules linking several fields. An assignment that breaks such a
+    rule is undone before the error propagates."""
+
+    _checks: dict = {}
+
+    def __post_init__(self):
+        # the dataclass __init__ has stored every field unchecked (see __setattr__)
+        for name, check in self._checks.items():
+            object.__setattr__(self, name, check(self, getattr(self, name)))
+        self._check_together()
+
+    def __setattr__(self, name, value):
+        check = self._checks.get(name)
+        if check is None or name not in self.__dict__:
+            # not a checked field, or its first assignment, by __init__: __post_init__ checks it
+            # once every field is there, so that a check may read the others
+            object.__setattr__(self, name, value)
+            return
+        old = self.__dict__[name]
+        object.__setattr__(self, name, check(self, value))
+        try:
+            self._check_together()
+        except BaseException:
+            object.__setattr__(self, name, old)
+            raise
+
+    def _check_together(self):
+        """Check (and derive) what depends on several fields; raise InputError if they disagree."""
