@@ -1,6 +1,6 @@
 """Scene objects are checked whenever a field is set, not only when made: a bad value raises as
 it would in the constructor, leaves the object as it was, and a good one is stored as the
-constructor stores it."""
+constructor stores it. pw.check flags radiance that is not finite or absurdly high."""
 
 import dataclasses
 import math
@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 import pbrwarp as pw
+from pbrwarp.diagnostics import MAX_PLAUSIBLE_RADIANCE
 
-from scenes import head_on_camera, quad
+from scenes import head_on_camera, lambert_white, quad
 
 NAN = math.nan
 
@@ -190,3 +191,35 @@ def test_a_refused_assignment_leaves_renders_unchanged():
     again = pw.render(scene, cam, width=16, height=16, progress=False)
     np.testing.assert_array_equal(again.rgb, first.rgb)
     assert pw.check(again).ok, pw.check(again)
+
+
+def frame_of(rgb) -> pw.Frame:
+    rgb = np.asarray(rgb, dtype=np.float32)
+    h, w = rgb.shape[:2]
+    return pw.Frame(rgb=rgb, depth=np.ones((h, w), np.float32), normal=np.zeros((h, w, 3), np.float32),
+                    alpha=np.ones((h, w), np.float32))
+
+
+def test_check_flags_absurd_and_clamped_radiance():
+    """float32's maximum is where the render kernel clamps an overflow (and a NaN): such a pixel
+    is finite but not sound, and neither is one above MAX_PLAUSIBLE_RADIANCE."""
+    rgb = np.zeros((2, 3, 3))
+    rgb[0, 0] = (np.finfo(np.float32).max, 0.0, 0.0)
+    rgb[0, 1, 2] = 10 * MAX_PLAUSIBLE_RADIANCE
+    rgb[1, 0] = MAX_PLAUSIBLE_RADIANCE  # at the bound: plausible still
+    report = pw.check(frame_of(rgb))
+    assert (report.nan, report.inf, report.negative, report.absurd) == (0, 0, 0, 2)
+    assert not report.ok and "2 with radiance above 1e+30" in str(report)
+    rgb[1, 1] = (NAN, 0.0, math.inf)
+    report = pw.check(frame_of(rgb))
+    assert (report.nan, report.inf, report.absurd) == (1, 1, 2)
+
+
+def test_check_passes_extreme_but_sound_radiance():
+    """A 1 cd light 1e-9 above a white Lambert surface: 1e18 / pi nits, finite and right."""
+    scene = pw.Scene()
+    scene.add_mesh(quad(size=2.0, material=lambert_white()))
+    scene.add_light(pw.PointLight(position=(0.0, 0.0, 1e-9), intensity=1.0))
+    frame = pw.render(scene, head_on_camera(), width=9, height=9, progress=False)
+    assert frame.rgb.max() > 1e16
+    assert pw.check(frame).ok, pw.check(frame)
