@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 
 import numpy as np
 
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
+from pbrwarp.kernels.raster import MAX_IMAGE_SIZE
 
 
 def finite_vector(value, length: int, what: str) -> tuple[float, ...]:
@@ -94,6 +96,124 @@ def readable_file(path, what: str, extensions: tuple, kinds: str) -> tuple[str, 
                                f"(supported: {', '.join(extensions)}, {kinds})")
     return path, ext
 
+
+# ---------------------------------------------------------------------- render sizes (docs/limits.md)
+# Pixels a side: the rasterizer's fixed-point edge functions are exact up to this size, and every
+# render may rasterize.
+MAX_IMAGE_SIDE = MAX_IMAGE_SIZE
+# Samples per pixel: the multi-jittered sampler (kernels/sampling.py) permutes strata of up to spp
+# as i -> (a i + b) mod n in int32, with a <= n + 1, i and b < n <= spp: exact while
+# spp^2 + spp - 2 < 2^31.
+MAX_SPP = 46340
+# Samples in a frame (width * height * spp): the kernels number them, and the sample-position and
+# visibility-buffer launches index them, with int32.
+MAX_SAMPLES = 2**31 - 1
+# Samples in a row (width * spp): a Warp array's strides are int32 bytes, and the visibility
+# buffer and the sample positions hold 8 bytes a sample in rows of width * spp.
+MAX_ROW_SAMPLES = (2**31 - 1) // 8
+# Share of the machine's memory one frame's buffers may take.
+MEMORY_SHARE = 0.5
+# Bytes a frame keeps per pixel (radiance and coverage; depth and normal with AOVs) and per
+# sample where primary visibility is rasterized (the visibility buffer and the sample positions).
+PIXEL_BYTES = 12 + 4
+AOV_PIXEL_BYTES = 4 + 12
+SAMPLE_BYTES = 8 + 8
+
+
+def frame_bytes(width: int, height: int, spp: int, aovs: bool = True, rasterized: bool = True) -> int:
+    """Bytes of the buffers a width x height render at ``spp`` allocates: its outputs, and the
+    per-sample buffers of rasterized primary visibility (``rasterized``)."""
+    per_pixel = PIXEL_BYTES + (AOV_PIXEL_BYTES if aovs else 0) + (SAMPLE_BYTES * spp if rasterized else 0)
+    return width * height * per_pixel
+
+
+def _proc_status_bytes(field: str) -> int | None:
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+@functools.cache
+def _physical_memory() -> int | None:
+    """Bytes of memory this process may use: the machine's, or its control group's if smaller."""
+    sizes = []
+    try:
+        sizes.append(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        pass
+    for path in ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"):
+        try:
+            with open(path) as limit:
+                sizes.append(int(limit.read().split()[0]))
+        except (OSError, ValueError, IndexError):
+            continue
+    sizes = [s for s in sizes if s > 0]
+    return min(sizes) if sizes else None
+
+
+def memory_limit() -> tuple[int | None, str]:
+    """(bytes one frame's buffers may take, None for no limit known; what the bound is): MEMORY_SHARE
+    of the memory this process may use, and no more than the room left under its address-space or
+    data-segment limit (``ulimit -v``, ``ulimit -d``)."""
+    bounds = []
+    physical = _physical_memory()
+    if physical is not None:
+        bounds.append((int(MEMORY_SHARE * physical),
+                       f"{MEMORY_SHARE:.0%} of the {_bytes_text(physical)} of memory this process may use"))
+    try:
+        import resource
+
+        for name, field, option in (("RLIMIT_AS", "VmSize", "-v"), ("RLIMIT_DATA", "VmData", "-d")):
+            soft = resource.getrlimit(getattr(resource, name))[0]
+            used = _proc_status_bytes(field)
+            if soft != resource.RLIM_INFINITY and used is not None:
+                bounds.append((max(soft - used, 0), f"the room left under this process's ulimit {option}"))
+    except (ImportError, AttributeError, OSError, ValueError):
+        pass
+    if not bounds:
+        return None, "no memory limit known"
+    return min(bounds)
+
+
+def _bytes_text(n: float) -> str:
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if n < 1024 or unit == "PiB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1024
+
+
+def render_size(width, height, spp, aovs: bool = True, rasterized: bool = True) -> tuple[int, int, int]:
+    """(width, height, spp) of a render, checked before anything is allocated: whole numbers >= 1
+    within MAX_IMAGE_SIDE, MAX_SPP, MAX_SAMPLES and MAX_ROW_SAMPLES, and the frame's buffers
+    (:func:`frame_bytes`) within :func:`memory_limit`. One error names every limit exceeded."""
+    width = positive_int(width, "width")
+    height = positive_int(height, "height")
+    spp = positive_int(spp, "spp")
+    problems = []
+    if max(width, height) > MAX_IMAGE_SIDE:
+        problems.append(f"more than {MAX_IMAGE_SIDE} pixels a side")
+    if spp > MAX_SPP:
+        problems.append(f"more than {MAX_SPP} samples per pixel")
+    if width * height * spp > MAX_SAMPLES:
+        problems.append(f"{width * height * spp:.3g} samples, more than 2^31 - 1")
+    if width * spp > MAX_ROW_SAMPLES:
+        problems.append(f"{width * spp:.3g} samples a row, more than 2^28 - 1")
+    needed = frame_bytes(width, height, spp, aovs, rasterized)
+    limit, bound = memory_limit()
+    if limit is not None and needed > limit:
+        problems.append(f"{_bytes_text(needed)} of buffers, more than the {_bytes_text(limit)} allowed ({bound})")
+    if problems:
+        advice = "render fewer pixels or samples per pixel (or average frames rendered with different seeds)"
+        if rasterized and limit is not None and needed > limit:
+            advice += ", or use visibility=\"raycast\", which keeps no per-sample buffers"
+        raise InputError(f"cannot render {width}x{height} pixels at spp {spp}: {'; '.join(problems)}. "
+                         f"{advice.capitalize()}; docs/limits.md lists the limits and their reasons")
+    return width, height, spp
 
 
 # ---------------------------------------------------------------------- fields checked on assignment
