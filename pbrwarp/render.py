@@ -133,7 +133,8 @@ def render(
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
-    ``camera`` defaults to the scene file's first camera, else one framing the whole scene.
+    ``camera`` defaults to the scene file's first camera, else one framing the whole scene
+    (``Camera.frame(scene, aspect=width / height)``).
     ``width`` x ``height`` pixels, each at most 65536; ``spp`` samples per pixel, at most 46340,
     stratified (multi-jittered); spp = 1 samples pixel centres. A frame holds at most 2^31 - 1
     samples (width * height * spp) and 2^28 - 1 in a row (width * spp), and its buffers (32 bytes
@@ -174,7 +175,7 @@ def render(
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise InputTypeError(f"seed must be an integer, got {seed!r}")
     if camera is None:
-        camera = scene.cameras[0] if scene.cameras else Camera.frame(scene)
+        camera = scene.cameras[0] if scene.cameras else Camera.frame(scene, aspect=width / height)
     elif not isinstance(camera, Camera):
         raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
 
