@@ -53,7 +53,7 @@ class Camera(validate.Checked):
     fov_y: float = 45.0
 
     _checks = {
-        "eye": lambda camera, value: validate.finite_vector(value, 3, "Camera eye"),
+        "eye": lambda camera, value: validate.float32_vector(value, 3, "Camera eye"),
         "forward": _view_direction,
         "up": lambda camera, value: validate.finite_vector(value, 3, "Camera up"),
         "fov_y": lambda camera, value: field_of_view(value),

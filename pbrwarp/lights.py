@@ -19,7 +19,7 @@ POINT, DIRECTIONAL, SPOT = 0, 1, 2
 
 
 def _position(light, value):
-    return validate.finite_vector(value, 3, f"{type(light).__name__}.position")
+    return validate.float32_vector(value, 3, f"{type(light).__name__}.position")
 
 
 def _direction(light, value):

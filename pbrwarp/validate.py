@@ -11,6 +11,8 @@ import numpy as np
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
 from pbrwarp.kernels.raster import MAX_IMAGE_SIZE
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
 
 def finite_vector(value, length: int, what: str) -> tuple[float, ...]:
     """``value`` as a tuple of ``length`` finite floats."""
@@ -23,6 +25,15 @@ def finite_vector(value, length: int, what: str) -> tuple[float, ...]:
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{what} must be finite, got {value!r}")
     return tuple(float(x) for x in arr)
+
+
+def float32_vector(value, length: int, what: str) -> tuple[float, ...]:
+    """``value`` as a tuple of ``length`` floats within float32's range, which the kernels compute
+    in (a position of 1e39 would reach them as Inf)."""
+    vector = finite_vector(value, length, what)
+    if max(abs(x) for x in vector) > FLOAT32_MAX:
+        raise InputError(f"{what} {vector} exceeds the float32 range (|x| < 3.4e38) the kernels compute in")
+    return vector
 
 
 def unit_vector(value, what: str) -> tuple[float, float, float]:

@@ -37,6 +37,7 @@ MAKERS = {
 # (object, field, value, what the error says): the cases first
 BAD = [
     ("camera", "eye", (NAN, 0.0, 3.0), "Camera eye"),
+    ("camera", "eye", (0.0, 0.0, 1e39), "float32"),
     ("camera", "fov_y", 180.0, "fov_y"),
     ("camera", "fov_y", 0.0, "fov_y"),
     ("camera", "fov_y", NAN, "fov_y"),
@@ -45,6 +46,7 @@ BAD = [
     ("camera", "up", (0.0, 0.0, 1.0), "parallel"),
     ("camera", "up", (NAN, 1.0, 0.0), "Camera up"),
     ("point", "position", (NAN, 0.0, 0.0), "PointLight.position"),
+    ("point", "position", (0.0, 0.0, -1e39), "float32"),
     ("point", "intensity", -1.0, "PointLight.intensity"),
     ("point", "intensity", math.inf, "PointLight.intensity"),
     ("point", "color", (1.0, -1.0, 1.0), "PointLight.color"),
