@@ -113,6 +113,10 @@ class Camera(validate.Checked):
                     float(depth.min()) - 1e-6 * size)
         depth = depth - along
         eye = centre + along * forward + _centred(x, depth) * right + _centred(y, depth) * image_up
+        if np.max(np.abs(eye)) > validate.FLOAT32_MAX:
+            raise InputError(f"the scene spans {extent:.3g} units: a camera framing it would stand at "
+                             f"{tuple(float(c) for c in eye)}, beyond the float32 range (|x| < 3.4e38) the "
+                             "kernels compute in; scale the scene down")
         return cls(eye=tuple(eye), forward=tuple(forward), up=tuple(image_up), fov_y=fov_y)
 
 

@@ -175,6 +175,12 @@ def test_real_models_fill_the_view():
         assert max(spans) > 1 / 1.1 - 3 / 48, (path.name, spans)
 
 
+def test_a_scene_too_large_to_frame_in_float32_is_refused():
+    mesh = trimesh.creation.box(extents=(3e38, 3e38, 3e38))  # within float32, but seen from 5e38 away
+    with pytest.raises(pw.InputError, match="float32"):
+        pw.Camera.frame(mesh_scene(mesh))
+
+
 def test_a_scene_collapsed_to_a_point_gets_a_usable_camera():
     scene = mesh_scene(trimesh.Trimesh([[1.0, 2.0, 3.0]] * 3, [[0, 1, 2]], process=False))
     camera = pw.Camera.frame(scene)
