@@ -330,7 +330,8 @@ def _choose_camera(scene, args) -> Camera:
     if scene.cameras:
         cam = scene.cameras[0]
         return cam if fov is None else Camera(cam.eye, cam.forward, cam.up, fov_y=fov)
-    return Camera.frame(scene, fov_y=45.0 if fov is None else fov)
+    width, height = args.size
+    return Camera.frame(scene, fov_y=45.0 if fov is None else fov, aspect=width / height)
 
 
 def _shoulder_light(camera: Camera) -> DirectionalLight:

@@ -2,7 +2,9 @@
 
 ``intensity`` is in candela for point and spot lights and in lux for directional lights; the
 radiometric quantity pbrwarp computes with is ``color * intensity`` (a white Lambert surface lit
-head-on by E lux has radiance E/pi).
+head-on by E lux has radiance E/pi). Every field is checked whenever it is set, by the
+constructor or later (pbrwarp.validate.Checked): a light never holds a NaN position or a negative
+intensity.
 """
 
 from __future__ import annotations
@@ -10,24 +12,34 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from . import validate
 from .errors import InputError
 
 POINT, DIRECTIONAL, SPOT = 0, 1, 2
 
 
-def _unit(v, what):
-    x = np.asarray(validate.finite_vector(v, 3, what))
-    n = np.linalg.norm(x)
-    if n == 0.0:
-        raise InputError(f"{what} must not be the zero vector")
-    return tuple(float(c) for c in x / n)
+def _position(light, value):
+    return validate.float32_vector(value, 3, f"{type(light).__name__}.position")
+
+
+def _direction(light, value):
+    return validate.unit_vector(value, f"{type(light).__name__}.direction")
+
+
+def _color(light, value):
+    return validate.colour(value, f"{type(light).__name__}.color")
+
+
+def _intensity(light, value):
+    return validate.non_negative(value, f"{type(light).__name__}.intensity")
+
+
+def _angle(name):
+    return lambda light, value: validate.finite_scalar(value, f"{type(light).__name__}.{name}")
 
 
 @dataclass
-class PointLight:
+class PointLight(validate.Checked):
     """Light radiating ``intensity`` candela equally in every direction from ``position``."""
 
     position: tuple = (0.0, 0.0, 0.0)
@@ -35,15 +47,11 @@ class PointLight:
     intensity: float = 1.0
 
     kind = POINT
-
-    def __post_init__(self):
-        self.position = validate.finite_vector(self.position, 3, f"{type(self).__name__}.position")
-        self.color = validate.colour(self.color, f"{type(self).__name__}.color")
-        self.intensity = validate.non_negative(self.intensity, f"{type(self).__name__}.intensity")
+    _checks = {"position": _position, "color": _color, "intensity": _intensity}
 
 
 @dataclass
-class DirectionalLight:
+class DirectionalLight(validate.Checked):
     """Light from infinitely far away, travelling along ``direction``; ``intensity`` in lux."""
 
     direction: tuple = (0.0, -1.0, 0.0)
@@ -51,20 +59,16 @@ class DirectionalLight:
     intensity: float = 1.0
 
     kind = DIRECTIONAL
-
-    def __post_init__(self):
-        self.direction = _unit(self.direction, "DirectionalLight.direction")
-        self.color = validate.colour(self.color, "DirectionalLight.color")
-        self.intensity = validate.non_negative(self.intensity, "DirectionalLight.intensity")
+    _checks = {"direction": _direction, "color": _color, "intensity": _intensity}
 
 
 @dataclass
-class SpotLight:
+class SpotLight(validate.Checked):
     """A point light limited to a cone around ``direction``; ``intensity`` in candela on its axis.
 
     ``inner_cone`` and ``outer_cone`` are half-angles in radians with
     0 <= inner_cone <= outer_cone <= pi/2; between them the intensity falls off smoothly as glTF's
-    KHR_lights_punctual specifies.
+    KHR_lights_punctual specifies. (To widen a cone, set ``outer_cone`` before ``inner_cone``.)
     """
 
     position: tuple = (0.0, 0.0, 0.0)
@@ -75,14 +79,10 @@ class SpotLight:
     outer_cone: float = math.pi / 4.0
 
     kind = SPOT
+    _checks = {"position": _position, "direction": _direction, "color": _color, "intensity": _intensity,
+               "inner_cone": _angle("inner_cone"), "outer_cone": _angle("outer_cone")}
 
-    def __post_init__(self):
-        self.position = validate.finite_vector(self.position, 3, "SpotLight.position")
-        self.direction = _unit(self.direction, "SpotLight.direction")
-        self.color = validate.colour(self.color, "SpotLight.color")
-        self.intensity = validate.non_negative(self.intensity, "SpotLight.intensity")
-        self.inner_cone = validate.finite_scalar(self.inner_cone, "SpotLight.inner_cone")
-        self.outer_cone = validate.finite_scalar(self.outer_cone, "SpotLight.outer_cone")
+    def _check_together(self):
         if not 0.0 <= self.inner_cone <= self.outer_cone <= math.pi / 2.0:
             raise InputError(
                 "SpotLight cones must satisfy 0 <= inner_cone <= outer_cone <= pi/2 (radians), got "

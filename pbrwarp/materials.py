@@ -19,10 +19,12 @@ TEXTURE_SLOTS = (
 
 
 @dataclass(eq=False)
-class Material:
+class Material(validate.Checked):
     """A glTF metallic-roughness material.
 
-    Factors are linear (as in glTF) and multiply the matching texture, if any.
+    Factors are linear (as in glTF) and multiply the matching texture, if any. Every field is
+    checked whenever it is set, by the constructor or later (``material.roughness = 7`` raises
+    as ``Material(roughness=7)`` does).
 
     - ``base_color``: linear RGB or RGBA. Colour textures are sRGB-encoded unless the
       :class:`Texture` says otherwise.
@@ -65,25 +67,21 @@ class Material:
     name: str = field(default="")
     complex_ior: tuple | None = None
 
-    def __post_init__(self):
-        rgba = validate.colour(self.base_color, "Material.base_color", allow_alpha=True)
-        if len(rgba) == 4 and rgba[3] > 1.0:
-            raise InputError(f"Material.base_color alpha must lie in [0, 1], got {rgba[3]}")
-        self.base_color = rgba if len(rgba) == 4 else (*rgba, 1.0)
-        self.metallic = validate.unit_interval(self.metallic, "Material.metallic")
-        self.roughness = validate.unit_interval(self.roughness, "Material.roughness")
-        self.specular = validate.unit_interval(self.specular, "Material.specular")
-        self.emissive = validate.colour(self.emissive, "Material.emissive")
-        self.normal_scale = validate.finite_scalar(self.normal_scale, "Material.normal_scale")
-        self.occlusion_strength = validate.unit_interval(self.occlusion_strength, "Material.occlusion_strength")
-        self.alpha_cutoff = validate.unit_interval(self.alpha_cutoff, "Material.alpha_cutoff")
-        if self.alpha_mode not in ("OPAQUE", "MASK", "BLEND"):
-            raise InputError(f"Material.alpha_mode must be OPAQUE, MASK or BLEND, got {self.alpha_mode!r}")
-        self.double_sided = bool(self.double_sided)
-        if self.complex_ior is not None:
-            self.complex_ior = _complex_ior(self.complex_ior)
-        for slot, _ in TEXTURE_SLOTS:
-            setattr(self, slot, Texture.wrap(getattr(self, slot), f"Material.{slot}"))
+    _checks = {
+        "base_color": lambda material, value: _base_color(value),
+        "metallic": lambda material, value: validate.unit_interval(value, "Material.metallic"),
+        "roughness": lambda material, value: validate.unit_interval(value, "Material.roughness"),
+        "specular": lambda material, value: validate.unit_interval(value, "Material.specular"),
+        "emissive": lambda material, value: validate.colour(value, "Material.emissive"),
+        "normal_scale": lambda material, value: validate.finite_scalar(value, "Material.normal_scale"),
+        "occlusion_strength": lambda material, value: validate.unit_interval(value, "Material.occlusion_strength"),
+        "alpha_cutoff": lambda material, value: validate.unit_interval(value, "Material.alpha_cutoff"),
+        "alpha_mode": lambda material, value: _alpha_mode(value),
+        "double_sided": lambda material, value: bool(value),
+        "complex_ior": lambda material, value: None if value is None else _complex_ior(value),
+        **{slot: (lambda material, value, slot=slot: Texture.wrap(value, f"Material.{slot}"))
+           for slot, _ in TEXTURE_SLOTS},
+    }
 
     @classmethod
     def conductor(cls, n, k, roughness: float = 0.5, **kwargs) -> "Material":
@@ -100,6 +98,20 @@ class Material:
             tex = getattr(self, slot)
             if tex is not None:
                 yield slot, tex, colour_slot if tex.srgb is None else tex.srgb
+
+
+def _base_color(value) -> tuple:
+    """Linear RGB or RGBA, stored as RGBA (alpha 1 if not given)."""
+    rgba = validate.colour(value, "Material.base_color", allow_alpha=True)
+    if len(rgba) == 4 and rgba[3] > 1.0:
+        raise InputError(f"Material.base_color alpha must lie in [0, 1], got {rgba[3]}")
+    return rgba if len(rgba) == 4 else (*rgba, 1.0)
+
+
+def _alpha_mode(value) -> str:
+    if value not in ("OPAQUE", "MASK", "BLEND"):
+        raise InputError(f"Material.alpha_mode must be OPAQUE, MASK or BLEND, got {value!r}")
+    return value
 
 
 def _complex_ior(value) -> tuple:

@@ -133,8 +133,14 @@ def render(
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
-    ``camera`` defaults to the scene file's first camera, else one framing the whole scene.
-    ``spp`` samples per pixel are stratified (multi-jittered); spp = 1 samples pixel centres.
+    ``camera`` defaults to the scene file's first camera, else one framing the whole scene
+    (``Camera.frame(scene, aspect=width / height)``).
+    ``width`` x ``height`` pixels, each at most 65536; ``spp`` samples per pixel, at most 46340,
+    stratified (multi-jittered); spp = 1 samples pixel centres. A frame holds at most 2^31 - 1
+    samples (width * height * spp) and 2^28 - 1 in a row (width * spp), and its buffers (32 bytes
+    a pixel, 16 with ``aovs=False``, plus 16 bytes a sample unless ``visibility="raycast"``) may
+    take at most half the memory the process may use (less under a ``ulimit``): larger requests
+    raise InputError before anything is allocated (docs/limits.md says why).
     ``threads`` defaults to every core; the image does not depend on it. ``shadows``: True or "rays"
     traces one shadow ray per light and sample (the reference), through each light's light buffer
     (pbrwarp.light_buffers, built on first use and kept while geometry and lights stay put) or
@@ -160,9 +166,8 @@ def render(
     """
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
-    width = validate.positive_int(width, "width")
-    height = validate.positive_int(height, "height")
-    spp = validate.positive_int(spp, "spp")
+    width, height, spp = validate.render_size(width, height, spp, aovs=bool(aovs),
+                                              rasterized=bool(specialize) and visibility != "raycast")
     if threads is not None:
         threads = validate.positive_int(threads, "threads")
     background_given = background is not None
@@ -170,7 +175,7 @@ def render(
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
         raise InputTypeError(f"seed must be an integer, got {seed!r}")
     if camera is None:
-        camera = scene.cameras[0] if scene.cameras else Camera.frame(scene)
+        camera = scene.cameras[0] if scene.cameras else Camera.frame(scene, aspect=width / height)
     elif not isinstance(camera, Camera):
         raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
 
@@ -231,8 +236,10 @@ def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality
     absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow itself ...")."""
     if not isinstance(scene, Scene):
         raise InputTypeError(f"explain takes a pbrwarp.Scene, got {type(scene).__name__}")
-    spp = validate.positive_int(spp, "spp")
-    samples = validate.positive_int(width, "width") * validate.positive_int(height, "height") * spp
+    width, height, spp = validate.render_size(width, height, spp, aovs=bool(aovs),
+                                              rasterized=bool(_render_options.get("specialize", True))
+                                              and visibility != "raycast")
+    samples = width * height * spp
     return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf),
                            visibility=visibility, samples=samples, ibl=ibl_for_quality(quality, ibl),
                            background_given=background is not None))

@@ -32,13 +32,65 @@ def _float_array(value, shape_tail, what, dtype=np.float64):
     return arr
 
 
+def _mesh_name(prim) -> str:
+    return f"mesh {prim.name!r}" if prim.name else "mesh"
+
+
+def _positions(prim, value) -> np.ndarray:
+    what = _mesh_name(prim)
+    positions = _float_array(value, (3,), f"{what} vertices")
+    with np.errstate(over="ignore"):
+        overflow = ~np.isfinite(positions.astype(np.float32)).all(axis=1)
+    if overflow.any():
+        rows = np.flatnonzero(overflow)[:3].tolist()
+        raise InputError(f"{what} vertices exceed the float32 range (|x| < 3.4e38) the renderer computes in "
+                         f"(first bad rows: {rows})")
+    if len(positions) >= 2**31 - 1:
+        raise InputError(f"{what} has {len(positions)} vertices; at most 2^31 - 2 are supported")
+    return positions
+
+
+def _faces(prim, value) -> np.ndarray:
+    what = _mesh_name(prim)
+    try:
+        faces = np.asarray(value)
+    except (TypeError, ValueError):
+        raise InputTypeError(f"{what} faces must be an integer array") from None
+    if faces.ndim != 2 or faces.shape[1] != 3:
+        raise InputError(f"{what} faces must have shape (F, 3) (triangles only), got {faces.shape}")
+    if len(faces) == 0:
+        raise InputError(f"{what} has no faces: nothing to render")
+    if not np.issubdtype(faces.dtype, np.integer):
+        if not np.all(np.isfinite(faces)) or np.any(faces != np.round(faces)):
+            raise InputTypeError(f"{what} faces must hold whole vertex indices")
+    return faces.astype(np.int64)
+
+
+def _material(prim, value) -> Material:
+    if not isinstance(value, Material):
+        raise InputTypeError(f"{_mesh_name(prim)} material must be a pbrwarp.Material, got {type(value).__name__}")
+    return value
+
+
+def _vertex_attribute(attr: str, width: int):
+    def check(prim, value):
+        return None if value is None else _float_array(value, (width,), f"{_mesh_name(prim)} {attr}")
+    return check
+
+
+VERTEX_ATTRIBUTES = (("normals", 3), ("uvs", 2), ("tangents", 4), ("colors", 4))
+
+
 @dataclass(eq=False)
-class Primitive:
+class Primitive(validate.Checked):
     """One triangle mesh in world space with one material.
 
     ``uvs`` use glTF's convention ((0, 0) = top-left of the image). ``normals`` rows of zero
     length mean "no normal here": those triangles are shaded flat. ``tangents`` are glTF's
     (xyz, handedness w); when absent and a normal texture needs them, they are generated from UVs.
+    Every field is checked whenever it is set, by the constructor or later: faces index the
+    vertices and each vertex attribute has one row per vertex (so a mesh with another vertex
+    count is a new Primitive).
     """
 
     positions: np.ndarray
@@ -50,44 +102,20 @@ class Primitive:
     colors: np.ndarray | None = None
     name: str = ""
 
-    def __post_init__(self):
-        what = f"mesh {self.name!r}" if self.name else "mesh"
-        self.positions = _float_array(self.positions, (3,), f"{what} vertices")
-        with np.errstate(over="ignore"):
-            overflow = ~np.isfinite(self.positions.astype(np.float32)).all(axis=1)
-        if overflow.any():
-            rows = np.flatnonzero(overflow)[:3].tolist()
-            raise InputError(f"{what} vertices exceed the float32 range (|x| < 3.4e38) the renderer computes in "
-                             f"(first bad rows: {rows})")
+    _checks = {"positions": _positions, "faces": _faces, "material": _material,
+               **{attr: _vertex_attribute(attr, width) for attr, width in VERTEX_ATTRIBUTES}}
+
+    def _check_together(self):
+        what = _mesh_name(self)
         n = len(self.positions)
-        try:
-            faces = np.asarray(self.faces)
-        except (TypeError, ValueError):
-            raise InputTypeError(f"{what} faces must be an integer array") from None
-        if faces.ndim != 2 or faces.shape[1] != 3:
-            raise InputError(f"{what} faces must have shape (F, 3) (triangles only), got {faces.shape}")
-        if len(faces) == 0:
-            raise InputError(f"{what} has no faces: nothing to render")
-        if not np.issubdtype(faces.dtype, np.integer):
-            if not np.all(np.isfinite(faces)) or np.any(faces != np.round(faces)):
-                raise InputTypeError(f"{what} faces must hold whole vertex indices")
-            faces = faces.astype(np.int64)
-        lo, hi = int(faces.min()), int(faces.max())
+        lo, hi = int(self.faces.min()), int(self.faces.max())
         if lo < 0 or hi >= n:
-            raise InputError(f"{what} faces index vertices {lo}..{hi}, but the mesh has {n} vertices (valid: 0..{n - 1})")
-        if n >= 2**31 - 1:
-            raise InputError(f"{what} has {n} vertices; at most 2^31 - 2 are supported")
-        self.faces = faces.astype(np.int64)
-        if not isinstance(self.material, Material):
-            raise InputTypeError(f"{what} material must be a pbrwarp.Material, got {type(self.material).__name__}")
-        for attr, width in (("normals", 3), ("uvs", 2), ("tangents", 4), ("colors", 4)):
+            raise InputError(f"{what} faces index vertices {lo}..{hi}, but the mesh has {n} vertices "
+                             f"(valid: 0..{n - 1})")
+        for attr, _ in VERTEX_ATTRIBUTES:
             value = getattr(self, attr)
-            if value is None:
-                continue
-            arr = _float_array(value, (width,), f"{what} {attr}")
-            if len(arr) != n:
-                raise InputError(f"{what} has {n} vertices but {len(arr)} {attr}")
-            setattr(self, attr, arr)
+            if value is not None and len(value) != n:
+                raise InputError(f"{what} has {n} vertices but {len(value)} {attr}")
 
     def bounds(self):
         return self.positions.min(axis=0), self.positions.max(axis=0)

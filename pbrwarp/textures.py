@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import validate
 from .errors import InputError, InputTypeError
 
 WRAP_MODES = {"repeat": 0, "clamp": 1, "mirror": 2}
@@ -94,14 +95,29 @@ def image_to_float_rgba(image, what: str = "texture") -> np.ndarray:
     return out
 
 
+def _wrap_mode(name: str):
+    def check(texture, mode):
+        if mode not in WRAP_MODES:
+            raise InputError(f"Texture {name} must be one of {sorted(WRAP_MODES)}, got {mode!r}")
+        return mode
+    return check
+
+
+def _image(texture, image):
+    """``image`` as given; its texels, converted (and so checked), become ``texture._rgba``."""
+    object.__setattr__(texture, "_rgba", image_to_float_rgba(image))
+    return image
+
+
 @dataclass(eq=False)
-class Texture:
+class Texture(validate.Checked):
     """An image and the way a material samples it.
 
     ``image``: numpy array (H, W[, C]) or Pillow image. ``srgb``: whether the texels are
     sRGB-encoded; ``None`` lets the material slot decide (colour slots sRGB, data slots linear,
     as glTF says). ``wrap_s``/``wrap_t``: "repeat", "clamp" or "mirror". ``offset``, ``rotation``
-    (radians) and ``scale`` are KHR_texture_transform's.
+    (radians) and ``scale`` are KHR_texture_transform's, finite. Every field is checked whenever
+    it is set, by the constructor or later.
     """
 
     image: object
@@ -113,16 +129,14 @@ class Texture:
     scale: tuple[float, float] = (1.0, 1.0)
     _rgba: np.ndarray | None = field(default=None, repr=False)
 
-    def __post_init__(self):
-        for name in ("wrap_s", "wrap_t"):
-            mode = getattr(self, name)
-            if mode not in WRAP_MODES:
-                raise InputError(f"Texture {name} must be one of {sorted(WRAP_MODES)}, got {mode!r}")
-        values = (*self.offset, self.rotation, *self.scale)
-        if len(values) != 5 or not all(math.isfinite(float(v)) for v in values):
-            raise InputError(f"Texture transform must be finite: offset={self.offset}, "
-                             f"rotation={self.rotation}, scale={self.scale}")
-        self._rgba = image_to_float_rgba(self.image)
+    _checks = {
+        "wrap_s": _wrap_mode("wrap_s"),
+        "wrap_t": _wrap_mode("wrap_t"),
+        "offset": lambda texture, value: validate.finite_vector(value, 2, "Texture offset"),
+        "rotation": lambda texture, value: validate.finite_scalar(value, "Texture rotation"),
+        "scale": lambda texture, value: validate.finite_vector(value, 2, "Texture scale"),
+        "image": _image,
+    }
 
     @classmethod
     def wrap(cls, value, what: str) -> "Texture | None":

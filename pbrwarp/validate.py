@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 
 import numpy as np
 
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
+from pbrwarp.kernels.raster import MAX_IMAGE_SIZE
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def finite_vector(value, length: int, what: str) -> tuple[float, ...]:
@@ -21,6 +25,24 @@ def finite_vector(value, length: int, what: str) -> tuple[float, ...]:
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{what} must be finite, got {value!r}")
     return tuple(float(x) for x in arr)
+
+
+def float32_vector(value, length: int, what: str) -> tuple[float, ...]:
+    """``value`` as a tuple of ``length`` floats within float32's range, which the kernels compute
+    in (a position of 1e39 would reach them as Inf)."""
+    vector = finite_vector(value, length, what)
+    if max(abs(x) for x in vector) > FLOAT32_MAX:
+        raise InputError(f"{what} {vector} exceeds the float32 range (|x| < 3.4e38) the kernels compute in")
+    return vector
+
+
+def unit_vector(value, what: str) -> tuple[float, float, float]:
+    """``value`` (3 finite numbers, not all zero) scaled to unit length."""
+    v = np.asarray(finite_vector(value, 3, what))
+    length = np.linalg.norm(v)
+    if length == 0.0:
+        raise InputError(f"{what} must not be the zero vector")
+    return tuple(float(c) for c in v / length)
 
 
 def finite_scalar(value, what: str) -> float:
@@ -84,3 +106,161 @@ def readable_file(path, what: str, extensions: tuple, kinds: str) -> tuple[str, 
         raise AssetFormatError(f"cannot load {path}: unsupported extension {ext!r} for a {what} "
                                f"(supported: {', '.join(extensions)}, {kinds})")
     return path, ext
+
+
+# ---------------------------------------------------------------------- render sizes (docs/limits.md)
+# Pixels a side: the rasterizer's fixed-point edge functions are exact up to this size, and every
+# render may rasterize.
+MAX_IMAGE_SIDE = MAX_IMAGE_SIZE
+# Samples per pixel: the multi-jittered sampler (kernels/sampling.py) permutes strata of up to spp
+# as i -> (a i + b) mod n in int32, with a <= n + 1, i and b < n <= spp: exact while
+# spp^2 + spp - 2 < 2^31.
+MAX_SPP = 46340
+# Samples in a frame (width * height * spp): the kernels number them, and the sample-position and
+# visibility-buffer launches index them, with int32.
+MAX_SAMPLES = 2**31 - 1
+# Samples in a row (width * spp): a Warp array's strides are int32 bytes, and the visibility
+# buffer and the sample positions hold 8 bytes a sample in rows of width * spp.
+MAX_ROW_SAMPLES = (2**31 - 1) // 8
+# Share of the machine's memory one frame's buffers may take.
+MEMORY_SHARE = 0.5
+# Bytes a frame keeps per pixel (radiance and coverage; depth and normal with AOVs) and per
+# sample where primary visibility is rasterized (the visibility buffer and the sample positions).
+PIXEL_BYTES = 12 + 4
+AOV_PIXEL_BYTES = 4 + 12
+SAMPLE_BYTES = 8 + 8
+
+
+def frame_bytes(width: int, height: int, spp: int, aovs: bool = True, rasterized: bool = True) -> int:
+    """Bytes of the buffers a width x height render at ``spp`` allocates: its outputs, and the
+    per-sample buffers of rasterized primary visibility (``rasterized``)."""
+    per_pixel = PIXEL_BYTES + (AOV_PIXEL_BYTES if aovs else 0) + (SAMPLE_BYTES * spp if rasterized else 0)
+    return width * height * per_pixel
+
+
+def _proc_status_bytes(field: str) -> int | None:
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+@functools.cache
+def _physical_memory() -> int | None:
+    """Bytes of memory this process may use: the machine's, or its control group's if smaller."""
+    sizes = []
+    try:
+        sizes.append(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        pass
+    for path in ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"):
+        try:
+            with open(path) as limit:
+                sizes.append(int(limit.read().split()[0]))
+        except (OSError, ValueError, IndexError):
+            continue
+    sizes = [s for s in sizes if s > 0]
+    return min(sizes) if sizes else None
+
+
+def memory_limit() -> tuple[int | None, str]:
+    """(bytes one frame's buffers may take, None for no limit known; what the bound is): MEMORY_SHARE
+    of the memory this process may use, and no more than the room left under its address-space or
+    data-segment limit (``ulimit -v``, ``ulimit -d``)."""
+    bounds = []
+    physical = _physical_memory()
+    if physical is not None:
+        bounds.append((int(MEMORY_SHARE * physical),
+                       f"{MEMORY_SHARE:.0%} of the {_bytes_text(physical)} of memory this process may use"))
+    try:
+        import resource
+
+        for name, field, option in (("RLIMIT_AS", "VmSize", "-v"), ("RLIMIT_DATA", "VmData", "-d")):
+            soft = resource.getrlimit(getattr(resource, name))[0]
+            used = _proc_status_bytes(field)
+            if soft != resource.RLIM_INFINITY and used is not None:
+                bounds.append((max(soft - used, 0), f"the room left under this process's ulimit {option}"))
+    except (ImportError, AttributeError, OSError, ValueError):
+        pass
+    if not bounds:
+        return None, "no memory limit known"
+    return min(bounds)
+
+
+def _bytes_text(n: float) -> str:
+    for unit in ("bytes", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if n < 1024 or unit == "PiB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1024
+
+
+def render_size(width, height, spp, aovs: bool = True, rasterized: bool = True) -> tuple[int, int, int]:
+    """(width, height, spp) of a render, checked before anything is allocated: whole numbers >= 1
+    within MAX_IMAGE_SIDE, MAX_SPP, MAX_SAMPLES and MAX_ROW_SAMPLES, and the frame's buffers
+    (:func:`frame_bytes`) within :func:`memory_limit`. One error names every limit exceeded."""
+    width = positive_int(width, "width")
+    height = positive_int(height, "height")
+    spp = positive_int(spp, "spp")
+    problems = []
+    if max(width, height) > MAX_IMAGE_SIDE:
+        problems.append(f"more than {MAX_IMAGE_SIDE} pixels a side")
+    if spp > MAX_SPP:
+        problems.append(f"more than {MAX_SPP} samples per pixel")
+    if width * height * spp > MAX_SAMPLES:
+        problems.append(f"{width * height * spp:.3g} samples, more than 2^31 - 1")
+    if width * spp > MAX_ROW_SAMPLES:
+        problems.append(f"{width * spp:.3g} samples a row, more than 2^28 - 1")
+    needed = frame_bytes(width, height, spp, aovs, rasterized)
+    limit, bound = memory_limit()
+    if limit is not None and needed > limit:
+        problems.append(f"{_bytes_text(needed)} of buffers, more than the {_bytes_text(limit)} allowed ({bound})")
+    if problems:
+        advice = "render fewer pixels or samples per pixel (or average frames rendered with different seeds)"
+        if rasterized and limit is not None and needed > limit:
+            advice += ", or use visibility=\"raycast\", which keeps no per-sample buffers"
+        raise InputError(f"cannot render {width}x{height} pixels at spp {spp}: {'; '.join(problems)}. "
+                         f"{advice.capitalize()}; docs/limits.md lists the limits and their reasons")
+    return width, height, spp
+
+
+# ---------------------------------------------------------------------- fields checked on assignment
+class Checked:
+    """Base of the scene objects (dataclasses) whose fields are checked whenever they are set: by
+    the constructor and by any later assignment, with the same check, so that an object never
+    holds a value the kernels cannot take (``light.position = (nan, 0, 0)`` raises as
+    ``PointLight(position=(nan, 0, 0))`` does).
+
+    A subclass maps field names to checks in ``_checks``, ``{name: check(obj, value) -> the value
+    to store}``, in the order the constructor runs them, and may override
+    :meth:`_check_together` for rules linking several fields. An assignment that breaks such a
+    rule is undone before the error propagates."""
+
+    _checks: dict = {}
+
+    def __post_init__(self):
+        # the dataclass __init__ has stored every field unchecked (see __setattr__)
+        for name, check in self._checks.items():
+            object.__setattr__(self, name, check(self, getattr(self, name)))
+        self._check_together()
+
+    def __setattr__(self, name, value):
+        check = self._checks.get(name)
+        if check is None or name not in self.__dict__:
+            # not a checked field, or its first assignment, by __init__: __post_init__ checks it
+            # once every field is there, so that a check may read the others
+            object.__setattr__(self, name, value)
+            return
+        old = self.__dict__[name]
+        object.__setattr__(self, name, check(self, value))
+        try:
+            self._check_together()
+        except BaseException:
+            object.__setattr__(self, name, old)
+            raise
+
+    def _check_together(self):
+        """Check (and derive) what depends on several fields; raise InputError if they disagree."""

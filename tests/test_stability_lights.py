@@ -8,6 +8,7 @@ import pytest
 import trimesh
 
 import pbrwarp as pw
+from pbrwarp.diagnostics import MAX_PLAUSIBLE_RADIANCE
 
 from scenes import head_on_camera, lambert_white, quad, render_checked as render
 
@@ -37,8 +38,14 @@ def test_huge_intensities_stay_finite_and_tone_map_to_white(intensity, distance)
     scene.add_mesh(quad(size=4.0, material=pw.Material(base_color=(1.0, 0.0, 0.0), roughness=0.3, specular=0.0)))
     scene.add_light(pw.PointLight(position=(0.0, 0.0, distance), intensity=intensity))
     scene.add_light(pw.DirectionalLight(direction=(0, 0, -1), intensity=intensity))
-    frame = render(scene, head_on_camera(), size=(9, 9))
+    frame = pw.render(scene, head_on_camera(), width=9, height=9, progress=False)
+    report = pw.check(frame)
+    assert (report.nan, report.inf, report.negative) == (0, 0, 0), report
     assert frame.rgb[4, 4, 0] > 1e20
+    # a white Lambert surface lit head-on by E lux has radiance E/pi: where that is beyond
+    # pw.check's bound (or float32's range, clamped), the check says so
+    expected = intensity * (1.0 + 1.0 / distance**2) / math.pi
+    assert report.ok == (expected <= MAX_PLAUSIBLE_RADIANCE), (report, expected)
     for tonemap in ("none", "reinhard", "aces"):
         assert np.all(frame.to_srgb8(tonemap=tonemap)[4, 4, 0] == 255)
 
