@@ -92,7 +92,7 @@ class Camera(validate.Checked):
         view is along Z)."""
         if not scene.primitives:
             raise InputError("the scene has no meshes: Camera.frame has nothing to frame")
-        points = np.concatenate([p.positions for p in scene.primitives])
+        points = np.concatenate([scene.cache.fact("hull points", p, _hull_points) for p in scene.primitives])
         lo, hi = points.min(axis=0), points.max(axis=0)
         forward = -np.asarray(validate.unit_vector(direction, "Camera.frame direction"))
         image_up = _frame_up(forward, np.asarray(validate.unit_vector(up, "Camera.frame up")))
@@ -118,6 +118,18 @@ class Camera(validate.Checked):
                              f"{tuple(float(c) for c in eye)}, beyond the float32 range (|x| < 3.4e38) the "
                              "kernels compute in; scale the scene down")
         return cls(eye=tuple(eye), forward=tuple(forward), up=tuple(image_up), fov_y=fov_y)
+
+
+def _hull_points(prim) -> np.ndarray:
+    """The vertices of ``prim``'s convex hull, which frame it as all its vertices do (a view holds
+    a set of points if and only if it holds their hull); all of them where Qhull finds no
+    full-dimensional hull (a flat or degenerate mesh)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return prim.positions[ConvexHull(prim.positions).vertices]
+    except (QhullError, ValueError):
+        return prim.positions
 
 
 def _positive(value, what: str) -> float:

@@ -27,8 +27,9 @@ slot                                  value (built by)                  key
                                       (shadow_maps.build)               the ShadowMap settings, the alpha
                                                                         cut-outs
 (fact, primitive), fact one of        a primitive's bounds, whether it  none: a primitive's arrays are fixed
-"bounds", "closed volume", "convex"   is a closed volume, or convex     once in a scene
-                                      (gpu_scene, features)
+"bounds", "closed volume", "convex",  is a closed volume, or convex,    once in a scene
+"hull points"                         its convex hull's vertices
+                                      (gpu_scene, features, camera)
 ====================================  ================================  =======================================
 
 What no key holds (the camera, light colours and intensities, material factors) is read anew by
@@ -65,7 +66,7 @@ import weakref
 # The slots derived from the geometry, dropped with it.
 GEOMETRY_DERIVED = ("rows", "face flags", "longest edges", "light buffers", "shadow maps")
 # The per-primitive facts' slot names: (fact, primitive).
-PRIMITIVE_FACTS = ("bounds", "closed volume", "convex")
+PRIMITIVE_FACTS = ("bounds", "closed volume", "convex", "hull points")
 
 
 class _Entry:
