@@ -201,10 +201,15 @@ INTERRUPTED = """
         clock = time.monotonic()
         again = pw.render(render_scene, camera, threads=threads, **SMALL).rgb
         report(where=where, latency=latency, cpu=cpu, seconds=time.monotonic() - clock,
-               reached=f"{where}" in stack, same=bool(np.array_equal(again, reference)))
+               reached=f"in {where}" in stack, same=bool(np.array_equal(again, reference)))
 
     # a fresh scene: its light buffers are being built (the next render builds them again)
-    interrupted(light_buffers, "run_all", 0.2, "light_buffers.py", demo_scene()[0])
+    interrupted(light_buffers, "run_all", 0.2, "build", demo_scene()[0])
+    # another, its buffers built: their interiors are being marked, on their first reuse (the
+    # marks made so far are kept, each valid, and the next render makes the others)
+    marked = demo_scene()[0]
+    pw.render(marked, camera, threads=threads, **SMALL)
+    interrupted(light_buffers, "run_all", 0.1, "mark_interiors", marked)
     # the rest with the scene's caches built: the camera's samples, then its raster, then shading
     interrupted(raster, "run_all", 0.3, "_cached_sample_positions", scene)
     interrupted(raster, "run_together", 0.05, "visibility_buffer", scene)
@@ -214,14 +219,14 @@ INTERRUPTED = """
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_an_interrupt_stops_every_part_of_a_render_at_once(threads):
-    """SIGINT (Ctrl-C) during a large frame's light-buffer build, sample positions, raster and
-    shading: KeyboardInterrupt reaches the caller within INTERRUPT_SECONDS, the process then uses
+    """SIGINT (Ctrl-C) during a large frame's light-buffer build, the marking of their interiors,
+    sample positions, raster and shading: KeyboardInterrupt reaches the caller within INTERRUPT_SECONDS, the process then uses
     no CPU (nothing of the frame runs on), and the next frame comes at once and equals the one
     rendered before (an interrupted build is not kept as if complete). threads=1 too: the
     calling thread waits for its launch rather than running it, where no signal reaches it."""
     reports = run_child(INTERRUPTED, threads, timeout=600)
-    assert [r["where"] for r in reports] == ["light_buffers.py", "_cached_sample_positions", "visibility_buffer",
-                                             "_run_with_progress"], reports
+    assert [r["where"] for r in reports] == ["build", "mark_interiors", "_cached_sample_positions",
+                                             "visibility_buffer", "_run_with_progress"], reports
     for part in reports:
         assert part["reached"], part
         assert part["latency"] < INTERRUPT_SECONDS, part
