@@ -20,10 +20,17 @@ from .robust import RAY_FAR, clamp_to_float32_max, SHADOW_RAY_SHORTENING, offset
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData
 from .shadow_map import ShadowMaps, shadow_map_visibility
-from .work_queue import take_next_item
+from .work_queue import read_counter, take_next_item_from
 from .surface import MAX_PASS_THROUGH, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
 
 wp.set_module_options({"enable_backward": False})
+
+# Slots of render_tile's int32 ``rows`` array: the counter rows are taken from, and a flag that
+# stops every launch at its next pixel once set (by an interrupt of the caller).
+ROWS_TAKEN = wp.constant(0)
+STOP = wp.constant(1)
+WORK_SLOTS = 2
+
 
 @functools.cache
 def render_kernel(features):
@@ -224,12 +231,16 @@ def render_kernel(features):
         buffers: LightBuffers,
         env: EnvironmentData,
         dfg: wp.array2d(dtype=wp.vec2),
+        rows: wp.array(dtype=wp.int32),
     ):
-        """Row py of the image, sample by sample."""
+        """Row py of the image, sample by sample, unless rows[STOP] is set: then the row is left
+        at the next pixel (which takes spp samples at most)."""
         cache = ShadowCache(-1)
         scale = wp.vec3(1.0)
         scale_material = int(-1)
         for px in range(cam.width):
+            if read_counter(rows, STOP) != 0:
+                return
             pixel_seed = seed + py * cam.width + px
             radiance = wp.vec3(0.0)
             normal_sum = wp.vec3(0.0)
@@ -324,15 +335,16 @@ def render_kernel(features):
         env: EnvironmentData,
         dfg: wp.array2d(dtype=wp.vec2),
     ):
-        # Launched once per thread: takes rows_per_take rows at a time from the counter ``rows``,
-        # shared by every launch, until none are left, so that the threads finish together. (Not
-        # a thread index per pixel or row: Warp's CPU code copies the kernel's arguments, structs
-        # of arrays of about a kilobyte, for every index, which per pixel cost ~10% of a frame.)
-        first_row = take_next_item(rows) * rows_per_take
-        while first_row < cam.height:
+        # Launched once per thread: takes rows_per_take rows at a time from the counter
+        # rows[ROWS_TAKEN], shared by every launch, until none are left (or rows[STOP] is set), so
+        # that the threads finish together. (Not a thread index per pixel or row: Warp's CPU code
+        # copies the kernel's arguments, structs of arrays of about a kilobyte, for every index,
+        # which per pixel cost ~10% of a frame.)
+        first_row = take_next_item_from(rows, ROWS_TAKEN) * rows_per_take
+        while first_row < cam.height and read_counter(rows, STOP) == 0:
             for py in range(first_row, wp.min(first_row + rows_per_take, cam.height)):
                 render_row(scene, cam, spp, grid_m, grid_n, seed, py, background, out_rgb, out_alpha, out_depth,
-                           out_normal, vbuffer, maps, buffers, env, dfg)
-            first_row = take_next_item(rows) * rows_per_take
+                           out_normal, vbuffer, maps, buffers, env, dfg, rows)
+            first_row = take_next_item_from(rows, ROWS_TAKEN) * rows_per_take
 
     return render_tile

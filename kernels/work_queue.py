@@ -23,6 +23,13 @@ def add_atomically(counters: wp.array(dtype=wp.int32), slot: int, amount: int):
     ...
 
 
+@wp.func_native("return __atomic_load_n(counters.data + slot, __ATOMIC_RELAXED);")
+def read_counter(counters: wp.array(dtype=wp.int32), slot: int) -> int:
+    """counters[slot] as another thread may be changing it (a flag set from Python, say): read
+    afresh at every call, never kept in a register across a loop."""
+    ...
+
+
 @wp.func
 def take_next_item(counter: wp.array(dtype=wp.int32)) -> int:
     """The counter's (counter[0]'s) value before incrementing it by one, atomically across threads."""

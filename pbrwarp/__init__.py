@@ -38,7 +38,7 @@ from .brdf import BRDF  # noqa: E402 - after the subpackages it imports
 from .camera import Camera
 from .diagnostics import FrameCheck, check
 from .environment import Environment
-from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError
+from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError, ResourceError
 from .frame import Frame
 from .ibl import IBL
 from .lights import DirectionalLight, PointLight, SpotLight
@@ -51,7 +51,7 @@ from .textures import Texture
 
 __all__ = [
     "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "IBL", "InputError",
-    "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "Scene", "ShadowMap", "SpotLight",
+    "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "ResourceError", "Scene", "ShadowMap", "SpotLight",
     "Texture", "check", "explain", "render",
 ]
 __version__ = "0.1.0"

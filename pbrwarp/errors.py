@@ -24,3 +24,7 @@ class AssetNotFoundError(PbrwarpError, FileNotFoundError):
 
 class AssetFormatError(PbrwarpError, ValueError):
     """A file exists but cannot be read as what it claims to be."""
+
+
+class ResourceError(PbrwarpError, RuntimeError):
+    """The system refused something a render needs (a thread); the message says what to change."""

@@ -42,8 +42,13 @@ MIN_CLEARANCE_RADII = 1.0e-4
 # Budget of a light's list entries: this many per triangle plus this many per cell of its views.
 MAX_ENTRIES_PER_TRIANGLE = 16
 MAX_ENTRIES_PER_CELL = 8
-# Work items per thread of the stages that split views and lights into blocks.
+# Work items per thread of the stages that split views and lights into blocks; but at most
+# BLOCK_ITEMS triangles or regions, and BLOCK_CELLS cells, a block, so that each job lasts a small
+# fraction of a second and an interrupt waits for little (marking the interiors of the 1.6M-triangle
+# happy Buddha took seconds a block on one thread in 4 blocks; development).
 WORK_BLOCKS_PER_THREAD = 4
+BLOCK_ITEMS = 1 << 14
+BLOCK_CELLS = 1 << 15
 # Fraction taken off the float32 distance from a light to the nearest surface.
 CLEARANCE_MARGIN = 1.0e-3
 # Regions of a large triangle (kernels/light_buffer.mark_clear_regions) span about REGION_CELLS
@@ -220,7 +225,7 @@ def _build(scene, gpu, threads: int) -> lb.LightBuffers:
     # triangles marked, in blocks that spread every view's work over the threads (the mesh often
     # fills one or two faces)
     blocks = WORK_BLOCKS_PER_THREAD * threads
-    rows = -(-side // blocks)
+    rows = max(min(-(-side // blocks), BLOCK_CELLS // side), 1)
     planes = wp.empty(max(triangles, 1), dtype=lb.LightPlane, device="cpu")
     for light, (first, n) in enumerate(spans):
         if n == 0:
@@ -430,8 +435,9 @@ def _mark_triangles(kernel, buffers: lb.LightBuffers, gpu, threads: int, front_o
 
 
 def _work_blocks(items: int, threads: int) -> list[tuple[int, int]]:
-    """[start, end) blocks of ``items`` (triangles, regions), WORK_BLOCKS_PER_THREAD per thread."""
-    per_block = max(-(-items // (WORK_BLOCKS_PER_THREAD * threads)), 1)
+    """[start, end) blocks of ``items`` (triangles, regions), WORK_BLOCKS_PER_THREAD per thread,
+    or more, of BLOCK_ITEMS each."""
+    per_block = max(min(-(-items // (WORK_BLOCKS_PER_THREAD * threads)), BLOCK_ITEMS), 1)
     return [(start, min(start + per_block, items)) for start in range(0, items, per_block)]
 
 

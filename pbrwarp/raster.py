@@ -2,17 +2,18 @@
 
 :func:`visibility_buffer` gives, per sample, the nearest triangle and its depth. Sample
 positions are camera independent and kept process-wide. The rest is one launch of kernels/raster.py's
-visibility_pipeline per thread, the calling thread and pool threads side by side (Warp CPU
-launches run on one thread and release the GIL), meeting at barriers that spin in the kernel
-rather than return to Python: the buffer cleared and vertices projected (a share each);
-triangles' screen rectangles, small triangles drawn into the buffer at once (atomic minima, as
-two threads may write one sample) and larger ones binned into TILE_SIZE tiles, in small batches
-of triangles, each launch taking those of its own part of the mesh first and then what is left
-of the others'; the bins laid out and filled; then the tiles with something to draw, in bands
-taken as the batches are, a tile drawn by one launch only. A sample keeps the minimum of its
-entries whatever the order they come in, so the buffer does not depend on the thread count. With
-a mesh's :func:`triangle_clusters`, clusters off screen, facing away (where flagged) or hidden
-behind what the clusters facing the eye drew are skipped (kernels/occlusion.py)."""
+visibility_pipeline per thread, on pool threads side by side (Warp CPU launches run on one
+thread and release the GIL; the caller waits, see pbrwarp/parallel.py), meeting at barriers that
+spin in the kernel rather than return to Python: the buffer cleared and vertices projected (a
+share each); triangles' screen rectangles, small triangles drawn into the buffer at once (atomic
+minima, as two threads may write one sample) and larger ones binned into TILE_SIZE tiles, in
+small batches of triangles, each launch taking those of its own part of the mesh first and then
+what is left of the others'; the bins laid out and filled; then the tiles with something to
+draw, in bands taken as the batches are, a tile drawn by one launch only. A sample keeps the
+minimum of its entries whatever the order they come in, so the buffer does not depend on the
+thread count. With a mesh's :func:`triangle_clusters`, clusters off screen, facing away (where
+flagged) or hidden behind what the clusters facing the eye drew are skipped
+(kernels/occlusion.py)."""
 
 from __future__ import annotations
 
@@ -55,6 +56,11 @@ MAX_BATCH = 2048
 # Sample-position arrays kept for reuse, process-wide: they depend on the image size, spp and seed
 # only, not on a scene.
 CACHED_SAMPLE_LAYOUTS = 4
+# Samples whose positions one job computes at most, so that an interrupt waits for little.
+SAMPLES_PER_JOB = 1 << 18
+# What an aborted call sets its work queues to: past any count of items (and far from overflow
+# by the launches' takes after it).
+_QUEUE_PAST_END = 1 << 30
 
 class _Scratch(threading.local):
     """Per calling thread, the largest scratch array of each kind used so far, reused by later
@@ -208,7 +214,7 @@ def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
             wp.launch(rk.sample_positions, dim=rows * width * spp, device="cpu",
                       inputs=[spp, grid_m, grid_n, seed, width, first_row, out])
 
-        run_all(launch, _chunks(height, threads), threads)
+        run_all(launch, _chunks(height, max(threads, math.ceil(height * width * spp / SAMPLES_PER_JOB))), threads)
         return out
 
     layout = (width, height, spp, grid_m, grid_n, seed)
@@ -445,24 +451,30 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
 
     def run(first_stage, stop_after_binning):
         def launch(k):
-            try:
-                _replay_launch(scratch, ("pipeline", k), rk.visibility_pipeline,
-                               [k, threads, first_stage, int(stop_after_binning), _os_yield_address(), positions,
-                                indices, vertices, layout.screen, layout.depth_weights, cam, int(bool(orthographic)),
-                                samples, spp, MIN_VERTEX_SHARE, layout.batch_size, layout.batch_stride, triangles,
-                                layout.tiles_x, cull_back_faces, layout.binned_count,
-                                layout.binned_face, layout.binned_rect, layout.tile_counts, layout.bad_indices,
-                                layout.cursors, layout.bin_start, layout.bin_total, bins, layout.busy_tiles,
-                                *cluster_arrays, layout.cluster_rect, layout.cluster_nearest, sync, layout.batch_ranges,
-                                released, epoch,
-                                out])
-            except BaseException:
-                layout.sync_view[int(rk.ABORTED)] = 1  # the other launches stop waiting for this one
-                raise
+            _replay_launch(scratch, ("pipeline", k), rk.visibility_pipeline,
+                           [k, threads, first_stage, int(stop_after_binning), _os_yield_address(), positions,
+                            indices, vertices, layout.screen, layout.depth_weights, cam, int(bool(orthographic)),
+                            samples, spp, MIN_VERTEX_SHARE, layout.batch_size, layout.batch_stride, triangles,
+                            layout.tiles_x, cull_back_faces, layout.binned_count,
+                            layout.binned_face, layout.binned_rect, layout.tile_counts, layout.bad_indices,
+                            layout.cursors, layout.bin_start, layout.bin_total, bins, layout.busy_tiles,
+                            *cluster_arrays, layout.cluster_rect, layout.cluster_nearest, sync, layout.batch_ranges,
+                            released, epoch,
+                            out])
+
+        def abort():
+            # a launch failed or the caller was interrupted: the others stop waiting at their next
+            # barrier, and taking work at their next take (every queue past its end, every range
+            # emptied; but ranges launch 0 sets out after this, from the barrier before: if every
+            # launch reaches the next barrier before seeing the flag, they draw one stage more)
+            layout.sync_view[int(rk.ABORTED)] = 1
+            layout.sync_view[int(rk.QUEUE_START)] = layout.sync_view[int(rk.QUEUE_FILL)] = _QUEUE_PAST_END
+            layout.batch_ranges.numpy().fill(0)
+            released_view[0] = epoch
 
         epoch = scratch["epoch"] = scratch.get("epoch", 0) + 1
         try:
-            join = run_together(launch, threads, join=False)
+            join = run_together(launch, threads, join=False, cancel=abort)
         finally:
             released_view[0] = epoch  # the pool threads' launches return (kernels/raster.py wait_for_release)
         if layout.sync_view[int(rk.ABORTED)] != 0:

@@ -28,12 +28,13 @@ from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
 from pbrwarp.kernels.dfg import dfg_table
 from pbrwarp.kernels.ibl import EnvironmentData
-from pbrwarp.kernels.render import render_kernel
+from pbrwarp.kernels.render import ROWS_TAKEN, STOP, WORK_SLOTS, render_kernel
 
 # One launch per thread, each taking ROWS_PER_TAKE rows at a time from one shared counter until
 # none are left, so that the threads finish together: with four fixed bands of rows per thread,
 # one thread sat idle for ~7 ms of a 60 ms 1024² frame whose rows cost unevenly (development
-# trial, bench/frames.py's icosphere). Progress is read off the counter.
+# trial, bench/frames.py's icosphere). Progress is read off the counter; an interrupt sets the
+# stop flag beside it, which the launches check at every pixel (kernels/render.py).
 ROWS_PER_TAKE = 4
 # Seconds between progress bar updates.
 PROGRESS_INTERVAL = 0.1
@@ -89,24 +90,29 @@ def _progress_bar(total: int, enabled):
 
 def _run_with_progress(launch, workers: int, rows_taken: wp.array, height: int, progress):
     """launch(k) for k in range(workers) on as many threads, a progress bar (if enabled and tqdm
-    is installed) following the rows taken from ``rows_taken`` meanwhile."""
+    is installed) following the rows taken from ``rows_taken`` meanwhile; an interrupt (or
+    error) sets its stop flag, ending every launch at its next pixel."""
+    counters = rows_taken.numpy()  # a view: the kernels' counter as they advance it, and the flag
+
+    def stop():
+        counters[int(STOP)] = 1
+
     bar = _progress_bar(height, progress)
     if bar is None:
-        run_all(launch, range(workers), workers)
+        run_all(launch, range(workers), workers, cancel=stop)
         return
     done = threading.Event()
 
     def follow():
-        taken = rows_taken.numpy()  # a view: the kernels' counter as they advance it
         finished = False
         while not finished:
             finished = done.wait(PROGRESS_INTERVAL)
-            bar.update(min(int(taken[0]) * ROWS_PER_TAKE, height) - bar.n)
+            bar.update(min(int(counters[int(ROWS_TAKEN)]) * ROWS_PER_TAKE, height) - bar.n)
 
     follower = threading.Thread(target=follow, daemon=True)
     follower.start()
     try:
-        run_all(launch, range(workers), workers)
+        run_all(launch, range(workers), workers, cancel=stop)
     finally:
         done.set()
         follower.join()
@@ -210,7 +216,7 @@ def render(
     else:
         vbuffer = wp.empty((1, 1), dtype=wp.uint64, device="cpu")
 
-    rows_taken = wp.zeros(1, dtype=wp.int32, device="cpu")
+    rows_taken = wp.zeros(WORK_SLOTS, dtype=wp.int32, device="cpu")
 
     def launch(_):
         wp.launch(kernel, dim=1, device="cpu",

@@ -14,6 +14,7 @@ import trimesh
 
 import pbrwarp as pw
 import warp as wp
+from pbrwarp import parallel
 from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.camera import CameraData, camera_ray_direction
 from pbrwarp.kernels import raster as rk
@@ -754,7 +755,7 @@ def test_empty_mesh_covers_nothing():
     assert (ids < 0).all()
 
 
-def test_bad_input_is_rejected_before_warp():
+def test_bad_input_is_rejected_before_warp(monkeypatch):
     geom = mesh_geometry([(0, 0, -1), (1, 0, -1), (0, 1, -1)], [[0, 1, 2]])
     cam = head_on()
     for indices, error in (([0, 1, 3], pw.InputError), ([0, 1, -1], pw.InputError), ([0, 1], pw.InputError)):
@@ -770,7 +771,11 @@ def test_bad_input_is_rejected_before_warp():
         visibility_buffer(geom.positions, geom.indices, cam, out=wp.empty((64, 63), dtype=wp.uint64))
     with pytest.raises(pw.InputError):
         visibility_buffer(geom.positions, geom.indices, cam, cull_back_faces=wp.zeros(2, dtype=wp.uint8))
-    # each thread's list of triangles to bin has room for all of them, in int32 entries
+    with pytest.raises(pw.InputError, match="threads must be at most"):
+        visibility_buffer(geom.positions, geom.indices, cam, threads=2**31)
+    # each thread's list of triangles to bin has room for all of them, in int32 entries (a mesh of
+    # 2^31 / threads triangles; here with the bound on threads lifted)
+    monkeypatch.setattr(parallel, "MAX_THREADS_PER_CORE", 2**31)
     with pytest.raises(pw.InputError, match="use fewer threads"):
         visibility_buffer(geom.positions, geom.indices, cam, threads=2**31)
 
