@@ -175,7 +175,7 @@ def render(
     width, height, spp = validate.render_size(width, height, spp, aovs=bool(aovs),
                                               rasterized=bool(specialize) and visibility != "raycast")
     if threads is not None:
-        threads = validate.positive_int(threads, "threads")
+        threads = thread_count(threads)  # bounded before any work starts
     background_given = background is not None
     background = validate.colour(background if background_given else (0.0, 0.0, 0.0), "background")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
