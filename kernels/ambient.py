@@ -6,12 +6,13 @@ import functools
 
 import warp as wp
 
-from .brdf import D_GGX, PI, specular_f0, specular_f90
+from .brdf import specular_f0, specular_f90
 from .dfg import dfg_lookup
 from .direction_sampling import (orthonormal_basis, pdf_cosine_hemisphere, pdf_ggx_vndf_reflection,
                                  sample_cosine_hemisphere, sample_ggx_vndf)
 from .ibl import (EnvironmentData, F_SchlickRoughness, environment_irradiance, environment_radiance,
                   prefiltered_radiance, split_sum_specular)
+from .microfacet import D_GGX, PI
 from .robust import MIN_COSINE, RAY_FAR, offset_ray_origin
 from .scene_data import SceneData
 

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 import warp as wp
 
-from .brdf import D_GGX, distribution_for, visibility_for
+from .microfacet import D_GGX, distribution_for, visibility_for
 from .loading import CPU_BLOCK_DIM, load_for_cpu
 
 wp.set_module_options({"enable_backward": False})

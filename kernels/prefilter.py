@@ -16,7 +16,7 @@ import math
 import numpy as np
 import warp as wp
 
-from .brdf import D_GGX
+from .microfacet import D_GGX
 from .direction_sampling import orthonormal_basis
 from .equirect import (EquirectLevels, make_levels, mip_pyramid, sample_levels, texel_centre_direction,
                        texel_solid_angles)

@@ -5,6 +5,7 @@ import pytest
 import warp as wp
 
 from pbrwarp.kernels import brdf as kb
+from pbrwarp.kernels import microfacet as km
 
 import reference as ref
 
@@ -29,8 +30,8 @@ def eval_terms(
     i = wp.tid()
     h = wp.normalize(v[i] + l[i])
     r = roughness[i]
-    out_d[i] = kb.D_GGX(r * r, n_dot_h[i], sin_sq[i])
-    out_g[i] = kb.V_SmithSchlickGGX(wp.dot(n[i], v[i]), wp.dot(n[i], l[i]), r)
+    out_d[i] = km.D_GGX(r * r, n_dot_h[i], sin_sq[i])
+    out_g[i] = km.V_SmithSchlickGGX(wp.dot(n[i], v[i]), wp.dot(n[i], l[i]), r)
     f0 = kb.specular_f0(base[i], metallic[i], specular[i])
     out_f[i] = kb.F_Schlick(f0, kb.specular_f90(metallic[i], specular[i]), wp.dot(v[i], h))
     out_brdf[i] = default_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
