@@ -12,7 +12,8 @@ import functools
 import warp as wp
 
 from .energy import albedo_tables
-from .microfacet import DISTRIBUTIONS, GEOMETRY_MODELS, PI, blinn_phong_exponent, distribution_for, visibility_for
+from .microfacet import (DISTRIBUTIONS, GEOMETRY_MODELS, PI, alpha_from_roughness, blinn_phong_exponent,
+                         distribution_for, visibility_for)
 from .robust import MIN_COSINE, safe_normalize
 
 wp.set_module_options({"enable_backward": False})
@@ -347,7 +348,7 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
             n_cross_h = wp.cross(n, h)
             n_dot_h = wp.min(wp.dot(n, h), 1.0)
             v_dot_h = wp.clamp(wp.dot(v, h), 0.0, 1.0)
-            alpha = roughness * roughness
+            alpha = alpha_from_roughness(roughness)
             f0 = specular_f0(base_color, metallic, specular)
             f90 = specular_f90(metallic, specular)
             F = fresnel_term(f0, f90, v_dot_h)
@@ -399,7 +400,7 @@ def legacy_brdf(diffuse_lobe: bool, specular_lobe: bool, model: str):
             # c_diff (1 - c_spec) keeps c_diff + c_spec <= 1 (seed 002)
             out = wp.cw_mul(wp.vec3(1.0) - c_spec, base_color) * ((1.0 - metallic) * Fd_Lambert())
         if wp.static(specular_lobe):
-            power = blinn_phong_exponent(roughness * roughness)
+            power = blinn_phong_exponent(alpha_from_roughness(roughness))
             if wp.static(model == "phong"):
                 r = 2.0 * n_dot_l * n - l
                 out = out + c_spec * Fs_Phong(0.25 * power, wp.dot(r, v))

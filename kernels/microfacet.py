@@ -15,6 +15,14 @@ MIN_ALPHA_SQ = wp.constant(1.0e-7)
 
 
 @wp.func
+def alpha_from_roughness(roughness: float) -> float:
+    """GGX's alpha from glTF's perceptual roughness, alpha = roughness^2 (Burley 2012; Karis 2013),
+    the remapping that makes roughness look about linear. Also called from host code
+    (kernels/prefilter.py): Warp then runs this body on the Python float given, in float64."""
+    return roughness * roughness
+
+
+@wp.func
 def D_GGX(alpha: float, n_dot_h: float, one_minus_n_dot_h_sq: float) -> float:
     """Trowbridge-Reitz/GGX distribution (Walter et al. 2007); 1 - (n.h)^2 is passed in, computed
     as |n x h|^2, since 1 - (n.h)^2 loses all precision near n.h = 1 in float32 (Filament).
@@ -95,14 +103,14 @@ _VISIBILITY = {"implicit": V_Implicit, "smith_separable": V_SmithGGXSeparable,
 @functools.cache
 def visibility_for(geometry: str):
     """V(n.v, n.l, roughness) of a geometry rung (Schlick-GGX is defined on roughness, the others
-    on alpha = roughness^2)."""
+    on alpha_from_roughness)."""
     v_of_alpha = _VISIBILITY.get(geometry, V_Implicit)
 
     @wp.func
     def visibility(n_dot_v: float, n_dot_l: float, roughness: float) -> float:
         if wp.static(geometry == "schlick_ggx"):
             return V_SmithSchlickGGX(n_dot_v, n_dot_l, roughness)
-        return v_of_alpha(n_dot_v, n_dot_l, roughness * roughness)
+        return v_of_alpha(n_dot_v, n_dot_l, alpha_from_roughness(roughness))
 
     return visibility
 
