@@ -29,9 +29,11 @@ stay in that cell from its origin's projection alone. A ray whose cells cannot b
 import warp as wp
 
 from .projection import Projection, camera_coordinates, clamped_rect, empty_rect, screen_point
-from .raster import clipped_rect, ray_triangle_intersection, triangle_corners
+from .ray_triangle import ray_triangle_intersection
 from .robust import RAY_FAR, to_double
+from .scene_data import triangle_corners
 from .shadow_map import CUBE_FACES, cube_face
+from .triangle_setup import clipped_rect
 
 wp.set_module_options({"enable_backward": False})
 

@@ -49,7 +49,7 @@ _together_turn = threading.Lock()
 def run_together(fn, threads: int, join: bool = True):
     """fn(k) for k = 0..threads-1 all at once: k = 0 on the calling thread (which is awake
     already), the others on threads - 1 pool threads, for launches that wait for each other
-    (see kernels/raster.py's all_arrived), so none may queue behind another. Concurrent calls take
+    (see kernels/barriers.py's all_arrived), so none may queue behind another. Concurrent calls take
     turns, lest one call's launches hold the pool while the others' wait for theirs. fn must see to
     it that an error before its launch releases the others (the raster sets an abort flag). The
     first exception raised is re-raised here, once every thread is done.
