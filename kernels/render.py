@@ -11,8 +11,9 @@ from .ambient import ambient_for
 from .brdf import albedo_coupled_brdf_for, brdf_for
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
-from .light_buffer import (LightBuffers, UNDECIDED, OCCLUDED, SHADOW_CACHE_LIGHTS, ShadowCache, light_buffer_occlusion,
-                           ray_leaves_clear, segment_meets_triangle)
+from .light_buffer import LightBuffers
+from .light_buffer_query import (OCCLUDED, SHADOW_CACHE_LIGHTS, UNDECIDED, ShadowCache, light_buffer_occlusion,
+                                 ray_leaves_clear, segment_meets_triangle)
 from .lights import LightSample, light_sampler
 from .normal_mapping import perturb_normal
 from .ray_triangle import ray_triangle_intersection
