@@ -1,5 +1,6 @@
 """The package's modules import on their own and depend on each other one way: no import cycle,
 counting the imports inside functions too (which hide a cycle from Python but not from a reader).
+And every kernel module compiles without the backward pass pbrwarp never uses.
 """
 
 import ast
@@ -7,6 +8,7 @@ import importlib
 from pathlib import Path
 
 import pytest
+import warp as wp
 
 PACKAGES = ("pbrwarp", "pbrwarp.kernels", "pbrwarp.meshes")
 # __main__ runs the command line when imported; its imports are still in the graph
@@ -86,6 +88,17 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 @pytest.mark.parametrize("name", sorted(set(module_files()) - NOT_IMPORTED))
 def test_every_module_imports(name):
     importlib.import_module(name)
+
+
+def test_every_kernel_module_compiles_without_backward():
+    """Each module of pbrwarp.kernels defining kernels sets enable_backward=False (a backward pass
+    would double compile time for gradients pbrwarp never takes)."""
+    modules = [importlib.import_module(name) for name in module_files() if name.startswith("pbrwarp.kernels.")]
+    kernels = [value for module in modules for value in vars(module).values()
+               if isinstance(value, wp.Kernel) and value.module.name == module.__name__]
+    assert len({kernel.module.name for kernel in kernels}) >= 10
+    for kernel in kernels:
+        assert kernel.module.options["enable_backward"] is False, kernel.module.name
 
 
 def test_the_graph_sees_the_imports_it_must():
