@@ -17,7 +17,7 @@ RESULTS = Path(__file__).resolve().parent / "results"
 def _arithmetic_kernel():
     import warp as wp
 
-    from pbrwarp.kernels.raster import all_done
+    from pbrwarp.kernels.barriers import all_done
 
     @wp.kernel(enable_backward=False, module="unique")
     def dependent_arithmetic(steps: int, launch: int, launches: int, finished: wp.array(dtype=wp.int32),

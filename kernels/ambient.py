@@ -6,12 +6,13 @@ import functools
 
 import warp as wp
 
-from .brdf import D_GGX, PI, specular_f0, specular_f90
+from .brdf import specular_f0, specular_f90
 from .dfg import dfg_lookup
 from .direction_sampling import (orthonormal_basis, pdf_cosine_hemisphere, pdf_ggx_vndf_reflection,
                                  sample_cosine_hemisphere, sample_ggx_vndf)
 from .ibl import (EnvironmentData, F_SchlickRoughness, environment_irradiance, environment_radiance,
                   prefiltered_radiance, split_sum_specular)
+from .microfacet import D_GGX, PI, alpha_from_roughness
 from .robust import MIN_COSINE, RAY_FAR, offset_ray_origin
 from .scene_data import SceneData
 
@@ -70,7 +71,7 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
         v_local = wp.transpose(frame) * v
         if v_local[2] <= 0.0:
             return wp.vec3(0.0)
-        alpha = roughness * roughness
+        alpha = alpha_from_roughness(roughness)
         state = wp.rand_init(seed, ENVIRONMENT_STREAM + stream)
         total = wp.vec3(0.0)
         for k in range(samples):

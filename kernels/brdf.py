@@ -1,5 +1,8 @@
 """The BRDF: Lambert diffuse plus Cook-Torrance specular, metallic-roughness parameterized as in
-glTF, with a ladder of rungs per term. One small function per term, named after its model.
+glTF, with a ladder of rungs per term. One small function per term, named after its model: the
+Fresnel and diffuse terms here, the microfacet distributions and masking terms in
+kernels/microfacet.py; the albedo tables of energy compensation and coupling come from
+kernels/energy.py.
 
 The default (the seeds' model) is Lambert, GGX, Smith/Schlick-GGX and Schlick Fresnel; the
 other rungs are cheaper or more exact alternatives chosen at compile time (pbrwarp.BRDF)."""
@@ -8,13 +11,13 @@ import functools
 
 import warp as wp
 
+from .energy import albedo_tables
+from .microfacet import (DISTRIBUTIONS, GEOMETRY_MODELS, PI, alpha_from_roughness, blinn_phong_exponent,
+                         distribution_for, visibility_for)
 from .robust import MIN_COSINE, safe_normalize
 
 wp.set_module_options({"enable_backward": False})
 
-PI = wp.constant(3.14159265358979323846)
-# Floor of alpha^2 = roughness^4 (the seeds' MIN_ROUGHNESS): keeps D finite at roughness 0.
-MIN_ALPHA_SQ = wp.constant(1.0e-7)
 # Dielectric reflectance at normal incidence for specular = 1 (IOR 1.5; seeds, glTF).
 DIELECTRIC_F0 = wp.constant(0.04)
 
@@ -23,30 +26,6 @@ DIELECTRIC_F0 = wp.constant(0.04)
 def Fd_Lambert() -> float:
     """Lambertian diffuse, 1/pi (Lambert 1760; seeds 000-004)."""
     return 1.0 / PI
-
-
-@wp.func
-def D_GGX(alpha: float, n_dot_h: float, one_minus_n_dot_h_sq: float) -> float:
-    """Trowbridge-Reitz/GGX distribution (Walter et al. 2007); 1 - (n.h)^2 is passed in, computed
-    as |n x h|^2, since 1 - (n.h)^2 loses all precision near n.h = 1 in float32 (Filament).
-    Zero for n.h <= 0 (Walter's chi+): a half vector below the surface, e.g. a view direction
-    under a back-facing shading normal, would otherwise read |n x h| ~ 0 as the lobe's peak."""
-    if n_dot_h <= 0.0:
-        return 0.0
-    a2 = wp.max(alpha * alpha, MIN_ALPHA_SQ)
-    d = one_minus_n_dot_h_sq + n_dot_h * n_dot_h * a2
-    return a2 / (PI * d * d)
-
-
-@wp.func
-def V_SmithSchlickGGX(n_dot_v: float, n_dot_l: float, roughness: float) -> float:
-    """Smith's separable G with Schlick-GGX, k = (roughness + 1)^2 / 8 for punctual lights
-    (Karis 2013, seeds 001/004), divided by 4 n.l n.v: the visibility form (Filament's V).
-    With G1(x) = x / (x (1 - k) + k), the n.l and n.v of the denominator cancel exactly, so
-    grazing cosines (down to denormals) give no 0/0."""
-    r = roughness + 1.0
-    k = r * r / 8.0
-    return 0.25 / ((n_dot_v * (1.0 - k) + k) * (n_dot_l * (1.0 - k) + k))
 
 
 @wp.func
@@ -59,55 +38,6 @@ def Fd_Burley(n_dot_v: float, n_dot_l: float, l_dot_h: float, roughness: float) 
     light = 1.0 + (f90 - 1.0) * (xl * xl * xl * xl * xl)
     view = 1.0 + (f90 - 1.0) * (xv * xv * xv * xv * xv)
     return light * view / PI
-
-
-@wp.func
-def blinn_phong_exponent(alpha: float) -> float:
-    """a_p = 2 / alpha^2 - 2, the Blinn-Phong exponent matching GGX's alpha (Walter et al. 2007),
-    alpha^2 floored like D_GGX's."""
-    return 2.0 / wp.max(alpha * alpha, MIN_ALPHA_SQ) - 2.0
-
-
-@wp.func
-def D_BlinnPhong(alpha: float, n_dot_h: float) -> float:
-    """Normalized Blinn-Phong NDF, (a_p + 2) / (2 pi) (n.h)^a_p (seed 002)."""
-    if n_dot_h <= 0.0:
-        return 0.0
-    power = blinn_phong_exponent(alpha)
-    return (power + 2.0) / (2.0 * PI) * wp.pow(wp.min(n_dot_h, 1.0), power)
-
-
-@wp.func
-def V_Implicit(n_dot_v: float, n_dot_l: float, alpha: float) -> float:
-    """The implicit geometry term G = n.l n.v (Hoffman 2010), so G / (4 n.l n.v) = 1/4."""
-    return 0.25
-
-
-@wp.func
-def V_SmithGGXSeparable(n_dot_v: float, n_dot_l: float, alpha: float) -> float:
-    """Exact separable Smith G1(v) G1(l) for GGX (Walter et al. 2007) over 4 n.l n.v, with
-    G1(x) = 2x / (x + sqrt(a^2 + (1 - a^2) x^2)) so that the cosines cancel."""
-    a2 = wp.max(alpha * alpha, MIN_ALPHA_SQ)
-    gv = n_dot_v + wp.sqrt(a2 + (1.0 - a2) * n_dot_v * n_dot_v)
-    gl = n_dot_l + wp.sqrt(a2 + (1.0 - a2) * n_dot_l * n_dot_l)
-    return 1.0 / (gv * gl)
-
-
-@wp.func
-def V_SmithGGXCorrelated(n_dot_v: float, n_dot_l: float, alpha: float) -> float:
-    """Height-correlated Smith G2 for GGX (Heitz 2014) over 4 n.l n.v (Filament's form)."""
-    a2 = wp.max(alpha * alpha, MIN_ALPHA_SQ)
-    lambda_v = n_dot_l * wp.sqrt(n_dot_v * n_dot_v * (1.0 - a2) + a2)
-    lambda_l = n_dot_v * wp.sqrt(n_dot_l * n_dot_l * (1.0 - a2) + a2)
-    return 0.5 / (lambda_v + lambda_l)
-
-
-@wp.func
-def V_SmithGGXCorrelatedFast(n_dot_v: float, n_dot_l: float, alpha: float) -> float:
-    """Hammon's linear approximation of the height-correlated Smith term (GDC 2017; Filament)."""
-    a = wp.max(alpha, wp.sqrt(MIN_ALPHA_SQ))
-    return 0.5 / (n_dot_l * (n_dot_v * (1.0 - a) + a) + n_dot_v * (n_dot_l * (1.0 - a) + a))
-
 
 @wp.func
 def F_None(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
@@ -210,44 +140,12 @@ def specular_f90(metallic: float, specular: float) -> wp.vec3:
 
 
 DIFFUSE_MODELS = ("lambert", "burley")
-DISTRIBUTIONS = ("ggx", "blinn_phong")
-GEOMETRY_MODELS = ("implicit", "schlick_ggx", "smith_separable", "smith_correlated", "smith_correlated_fast")
 FRESNEL_MODELS = ("none", "schlick", "spherical_gaussian", "exact")
 ENERGY_MODELS = ("single", "multiscatter")
 # "microfacet" is Cook-Torrance with the rungs above; the others are the legacy, non-PBR
 # baselines the seeds contrast it with, Lambert plus a normalized (Blinn-)Phong lobe.
 MODELS = ("microfacet", "phong", "blinn_phong")
-_VISIBILITY = {"implicit": V_Implicit, "smith_separable": V_SmithGGXSeparable,
-               "smith_correlated": V_SmithGGXCorrelated, "smith_correlated_fast": V_SmithGGXCorrelatedFast}
 _FRESNEL = {"none": F_None, "schlick": F_Schlick, "spherical_gaussian": F_SphericalGaussian, "exact": F_Exact}
-
-
-@functools.cache
-def visibility_for(geometry: str):
-    """V(n.v, n.l, roughness) of a geometry rung (Schlick-GGX is defined on roughness, the others
-    on alpha = roughness^2)."""
-    v_of_alpha = _VISIBILITY.get(geometry, V_Implicit)
-
-    @wp.func
-    def visibility(n_dot_v: float, n_dot_l: float, roughness: float) -> float:
-        if wp.static(geometry == "schlick_ggx"):
-            return V_SmithSchlickGGX(n_dot_v, n_dot_l, roughness)
-        return v_of_alpha(n_dot_v, n_dot_l, roughness * roughness)
-
-    return visibility
-
-
-@functools.cache
-def distribution_for(distribution: str):
-    """D(alpha, n.h, |n x h|^2) of a distribution rung."""
-
-    @wp.func
-    def ndf(alpha: float, n_dot_h: float, sin_sq: float) -> float:
-        if wp.static(distribution == "blinn_phong"):
-            return D_BlinnPhong(alpha, n_dot_h)
-        return D_GGX(alpha, n_dot_h, sin_sq)
-
-    return ndf
 
 
 COUPLING_MODELS = ("albedo", "fresnel", "none")
@@ -271,8 +169,6 @@ def static_table(values: tuple):
 def albedo_lookup(distribution: str, geometry: str, fresnel: str):
     """(lookup, averages) over the energy tables of a rung triple: lookup(n.x, roughness) -> (E1, Ew),
     bilinear like energy.interpolate_rows; averages(roughness) -> the four cosine-weighted means."""
-    from .energy import albedo_tables
-
     t = albedo_tables(distribution, geometry, fresnel)
     size = t.size
     table = static_table(t.albedo)
@@ -452,7 +348,7 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
             n_cross_h = wp.cross(n, h)
             n_dot_h = wp.min(wp.dot(n, h), 1.0)
             v_dot_h = wp.clamp(wp.dot(v, h), 0.0, 1.0)
-            alpha = roughness * roughness
+            alpha = alpha_from_roughness(roughness)
             f0 = specular_f0(base_color, metallic, specular)
             f90 = specular_f90(metallic, specular)
             F = fresnel_term(f0, f90, v_dot_h)
@@ -504,7 +400,7 @@ def legacy_brdf(diffuse_lobe: bool, specular_lobe: bool, model: str):
             # c_diff (1 - c_spec) keeps c_diff + c_spec <= 1 (seed 002)
             out = wp.cw_mul(wp.vec3(1.0) - c_spec, base_color) * ((1.0 - metallic) * Fd_Lambert())
         if wp.static(specular_lobe):
-            power = blinn_phong_exponent(roughness * roughness)
+            power = blinn_phong_exponent(alpha_from_roughness(roughness))
             if wp.static(model == "phong"):
                 r = 2.0 * n_dot_l * n - l
                 out = out + c_spec * Fs_Phong(0.25 * power, wp.dot(r, v))

@@ -17,6 +17,7 @@ import warp as wp
 
 from .direction_sampling import G1_SmithGGX, sample_ggx_vndf
 from .energy import radical_inverse_base2
+from .microfacet import alpha_from_roughness
 
 wp.set_module_options({"enable_backward": False})
 
@@ -30,7 +31,7 @@ DFG_SAMPLES = 4096
 def G_SchlickGGX_IBL(n_dot_v: float, n_dot_l: float, roughness: float) -> float:
     """Smith's separable G with Schlick-GGX and k = roughness^2 / 2, for image-based lighting
     (Karis 2013; seed 001)."""
-    k = roughness * roughness / 2.0
+    k = alpha_from_roughness(roughness) / 2.0
     return n_dot_v / (n_dot_v * (1.0 - k) + k) * n_dot_l / (n_dot_l * (1.0 - k) + k)
 
 
@@ -43,7 +44,7 @@ def integrate_dfg(samples: int, out: wp.array2d(dtype=wp.vec2)):
     size = out.shape[0]
     n_dot_v = (float(i) + 0.5) / float(size)
     roughness = float(j) / float(out.shape[1] - 1)
-    alpha = roughness * roughness
+    alpha = alpha_from_roughness(roughness)
     v = wp.vec3(wp.sqrt(1.0 - n_dot_v * n_dot_v), 0.0, n_dot_v)
     masking = G1_SmithGGX(n_dot_v, alpha)
     a = float(0.0)

@@ -9,7 +9,7 @@ frame whose z axis is the normal; ``orthonormal_basis`` takes them to world spac
 
 import warp as wp
 
-from .brdf import MIN_ALPHA_SQ, PI
+from .microfacet import MIN_ALPHA_SQ, PI
 
 wp.set_module_options({"enable_backward": False})
 

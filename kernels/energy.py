@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 import warp as wp
 
-from .brdf import D_GGX, distribution_for, visibility_for
+from .microfacet import D_GGX, alpha_from_roughness, distribution_for, visibility_for
 from .loading import CPU_BLOCK_DIM, load_for_cpu
 
 wp.set_module_options({"enable_backward": False})
@@ -77,7 +77,7 @@ def albedo_kernel(distribution: str, geometry: str):
         size = out.shape[0]
         n_dot_v = (float(i) + 0.5) / float(size)
         roughness = float(j) / float(size - 1)
-        alpha = wp.max(roughness * roughness, 3.1622776e-4)
+        alpha = wp.max(alpha_from_roughness(roughness), 3.1622776e-4)
         a2 = alpha * alpha
         v = wp.vec3(wp.sqrt(1.0 - n_dot_v * n_dot_v), 0.0, n_dot_v)
         total = float(0.0)

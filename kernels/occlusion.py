@@ -38,10 +38,10 @@ DEPTH_ROUNDING = wp.constant(wp.float64(1.0e-12))
 DEPTH_MARGIN = wp.constant(wp.float64(1.0e-6))
 # Angle (radians) by which every triangle of a cluster must face away from the eye for the cluster
 # to be culled as a whole: a triangle that close to edge-on keeps its winding after its vertices
-# are snapped (kernels/raster.py) unless it is under ~1/50 pixel across.
+# are snapped (kernels/triangle_setup.py) unless it is under ~1/50 pixel across.
 BACK_FACE_MARGIN = wp.constant(wp.float64(0.05))
-# Fates of clusters in the rasterizer's cluster_nearest, besides the nearest depth (> 0) of one
-# deferred to the occlusion test: drawn in the first pass, or skipped (off screen, facing away,
+# Fates of clusters in the rasterizer's ClusterCulling.nearest, besides the nearest depth (> 0) of
+# one deferred to the occlusion test: drawn in the first pass, or skipped (off screen, facing away,
 # occluded).
 NOT_DEFERRED = wp.constant(wp.float64(-1.0))
 SKIPPED = wp.constant(wp.float64(-2.0))

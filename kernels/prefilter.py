@@ -16,7 +16,7 @@ import math
 import numpy as np
 import warp as wp
 
-from .brdf import D_GGX
+from .microfacet import D_GGX, alpha_from_roughness
 from .direction_sampling import orthonormal_basis
 from .equirect import (EquirectLevels, make_levels, mip_pyramid, sample_levels, texel_centre_direction,
                        texel_solid_angles)
@@ -105,7 +105,7 @@ def ggx_lobe(roughness: float, samples: int, source_height: int) -> np.ndarray:
     pdf p stands for a solid angle 1 / (N p), read from the pyramid level whose texels cover it
     (Colbert & Krivanek 2007, without their +1 level: against brute-force prefiltering of the
     shared HDRs it only added blur)."""
-    alpha = roughness * roughness
+    alpha = alpha_from_roughness(roughness)
     a2 = max(alpha * alpha, 1e-7)
     u = hammersley(samples)
     denominator = 1.0 + (a2 - 1.0) * u[:, 0]
@@ -152,7 +152,7 @@ def gather_height(roughness: float) -> int:
     """Rows of the pyramid level a gather reads for this roughness: texels of at most alpha / 3
     radians (pi / H <= alpha / 3), across which D varies little, and at least GATHER_MIN_HEIGHT
     rows, so that n.l, which falls to 0 at the hemisphere's edge, is sampled finely too."""
-    alpha = roughness * roughness
+    alpha = alpha_from_roughness(roughness)
     return max(GATHER_MIN_HEIGHT, 1 << math.ceil(math.log2(3.0 * math.pi / alpha)))
 
 
@@ -176,7 +176,7 @@ def prefilter(source: np.ndarray, run_bands=None, levels: int = PREFILTER_LEVELS
         if 2 * height * height * read.shape[0] * read.shape[1] <= GATHER_BUDGET:
             radiance = wp.array(read.reshape(-1, 3), dtype=wp.vec3, device="cpu")
             directions = wp.array(texel_directions(read.shape[0]), dtype=wp.vec4, device="cpu")
-            kernel, inputs = gather_rows, [radiance, directions, roughness * roughness]
+            kernel, inputs = gather_rows, [radiance, directions, alpha_from_roughness(roughness)]
         else:
             count = samples * (heights[1] // height) ** 2
             lobe = wp.array(ggx_lobe(roughness, count, source.shape[0]), dtype=wp.vec4, device="cpu")

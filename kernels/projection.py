@@ -10,7 +10,8 @@ from .robust import to_double
 wp.set_module_options({"enable_backward": False})
 
 # Vertices and samples are snapped to 1/4096 pixel: far below what the float32 ray caster
-# resolves, and coarse enough that edge functions fit int64 (see kernels/raster.py GUARD_BAND).
+# resolves, and coarse enough that edge functions fit int64 (see kernels/triangle_setup.py
+# GUARD_BAND).
 SUBPIXEL_BITS = wp.constant(wp.int64(12))
 SUBPIXEL_SCALE = wp.constant(wp.float64(4096.0))
 PIXEL = wp.constant(wp.int64(4096))

@@ -11,17 +11,19 @@ from .ambient import ambient_for
 from .brdf import albedo_coupled_brdf_for, brdf_for
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
-from .light_buffer import (LightBuffers, UNDECIDED, OCCLUDED, SHADOW_CACHE_LIGHTS, ShadowCache, light_buffer_occlusion,
-                           ray_leaves_clear, segment_meets_triangle)
+from .light_buffer import LightBuffers
+from .light_buffer_query import (OCCLUDED, SHADOW_CACHE_LIGHTS, UNDECIDED, ShadowCache, light_buffer_occlusion,
+                                 ray_leaves_clear, segment_meets_triangle)
 from .lights import LightSample, light_sampler
 from .normal_mapping import perturb_normal
-from .raster import ray_triangle_intersection, triangle_corners, visible_triangle
+from .ray_triangle import ray_triangle_intersection
 from .robust import RAY_FAR, clamp_to_float32_max, SHADOW_RAY_SHORTENING, offset_ray_origin, safe_normalize
 from .sampling import multi_jittered_sample
-from .scene_data import NO_TEXTURE, MaterialData, SceneData
+from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
 from .work_queue import read_counter, take_next_item_from
 from .surface import MAX_PASS_THROUGH, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
+from .visibility_buffer import visible_triangle
 
 wp.set_module_options({"enable_backward": False})
 

@@ -5,7 +5,8 @@ N = m x n samples are stratified both on the m x n grid and on N strips in x and
 one permutation of columns and one of rows per pixel, as in Kensler's correlated multi-jittered
 sampling (Pixar 2013). The permutations here are affine maps i -> (a i + b) mod l with a coprime
 to l, seeded from Warp's per-pixel random state, so every pixel gets its own pattern and the
-image does not depend on how the frame is split into tiles.
+image does not depend on how the frame is split into tiles. sample_positions lays every sample's
+image position out for the rasterizer, computed as the ray caster computes its rays'.
 """
 
 import warp as wp
@@ -56,3 +57,18 @@ def multi_jittered_sample(s: int, m: int, n: int, seed: int) -> wp.vec2:
     x = (float(col) + (float(sub_x) + jx) / float(n)) / float(m)
     y = (float(row) + (float(sub_y) + jy) / float(m)) / float(n)
     return wp.vec2(wp.min(x, 0.99999994), wp.min(y, 0.99999994))
+
+
+@wp.kernel
+def sample_positions(spp: int, grid_m: int, grid_n: int, seed: int, width: int, first_row: int,
+                     out: wp.array2d(dtype=wp.vec2)):
+    """Image position (pixels, (0, 0) the top-left corner) of every sample of rows first_row...,
+    computed exactly as the ray caster's render_tile computes its rays' (x, y)."""
+    i = wp.tid()
+    s = i % spp
+    px = (i / spp) % width
+    py = first_row + i / (spp * width)
+    offset = wp.vec2(0.5, 0.5)
+    if spp > 1:
+        offset = multi_jittered_sample(s, grid_m, grid_n, seed + py * width + px)
+    out[py, px * spp + s] = wp.vec2(float(px) + offset[0], float(py) + offset[1])

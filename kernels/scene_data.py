@@ -52,3 +52,9 @@ class SceneData:
     texels: wp.array(dtype=wp.vec4)
     lights: wp.array(dtype=LightData)
     num_lights: int
+
+
+@wp.func
+def triangle_corners(indices: wp.array(dtype=wp.int32), face: int) -> wp.vec3i:
+    """The vertex indices of triangle ``face`` in a flat index array."""
+    return wp.vec3i(indices[3 * face], indices[3 * face + 1], indices[3 * face + 2])

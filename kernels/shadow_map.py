@@ -7,10 +7,10 @@ import functools
 import warp as wp
 
 from .camera import CameraData, camera_ray_direction
-from .raster import NO_TRIANGLE, visibility_entry, visible_triangle
 from .robust import RAY_FAR
 from .scene_data import SceneData
 from .surface import surface_tests
+from .visibility_buffer import NO_TRIANGLE, visibility_entry, visible_triangle
 
 wp.set_module_options({"enable_backward": False})
 

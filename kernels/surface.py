@@ -7,9 +7,8 @@ from typing import Any
 
 import warp as wp
 
-from .raster import triangle_corners
 from .robust import offset_ray_origin, safe_normalize, triangle_hit_error
-from .scene_data import NO_TEXTURE, MaterialData, SceneData
+from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .textures import sample_texture
 
 wp.set_module_options({"enable_backward": False})

@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .errors import InputError
-from pbrwarp.kernels.brdf import (COUPLING_MODELS, DIFFUSE_MODELS, DISTRIBUTIONS, ENERGY_MODELS, FRESNEL_MODELS,
-                                  GEOMETRY_MODELS, MODELS)
+from pbrwarp.kernels.brdf import COUPLING_MODELS, DIFFUSE_MODELS, ENERGY_MODELS, FRESNEL_MODELS, MODELS
+from pbrwarp.kernels.microfacet import DISTRIBUTIONS, GEOMETRY_MODELS
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,13 @@ from .parallel import run_all, thread_count
 from .raster import projection
 from .shadow_maps import light_geometry, light_views, view_count
 from pbrwarp.kernels import light_buffer as lb
+from pbrwarp.kernels.light_buffer_cells import count_cells, fill_cells, nearest_surface_distance
+from pbrwarp.kernels.light_buffer_interiors import mark_clear_interiors
+from pbrwarp.kernels.light_buffer_marks import finish_cells, mark_clear_triangles
+from pbrwarp.kernels.light_buffer_planes import LightPlane, light_planes
+from pbrwarp.kernels.light_buffer_regions import mark_clear_regions
 from pbrwarp.kernels.loading import load_for_cpu
+from pbrwarp.kernels.projection import Projection
 
 # Cells per side of each view: RESOLUTION, which keeps the lists of an 80k-triangle sphere in a
 # 90-degree cube face at a few triangles (bench/frames.py), for scenes of up to
@@ -51,9 +57,9 @@ BLOCK_ITEMS = 1 << 14
 BLOCK_CELLS = 1 << 15
 # Fraction taken off the float32 distance from a light to the nearest surface.
 CLEARANCE_MARGIN = 1.0e-3
-# Regions of a large triangle (kernels/light_buffer.mark_clear_regions) span about REGION_CELLS
-# cells across as the light sees them: smaller ones follow a shadow's outline more closely and cost
-# more to mark. A triangle not clear of a light gets a grid of regions if it has at least
+# Regions of a large triangle (kernels/light_buffer_regions.mark_clear_regions) span about
+# REGION_CELLS cells across as the light sees them: smaller ones follow a shadow's outline more
+# closely and cost more to mark. A triangle not clear of a light gets a grid of regions if it has at least
 # MIN_REGION_GRID of them per side, of at most MAX_REGION_GRID (65,536 flags); a light gets at
 # most MAX_REGIONS_PER_LIGHT flags, all lights together MAX_REGIONS (bytes of memory).
 REGION_CELLS = 16
@@ -86,16 +92,16 @@ def front_only_faces(scene, gpu) -> list[wp.array]:
     only, as the light sees the scene: its mesh's back faces are never seen from the light's
     position (gpu_scene.back_faces_unseen). There a triangle facing away from the light sends no
     shadow ray towards it, and its marks are not worth making
-    (kernels/light_buffer.no_shadow_rays_leave). A camera that does see such back faces (one
-    inside a closed mesh that the light is outside of) gets their shadows by queries."""
+    (kernels/light_buffer_planes.no_shadow_rays_leave). A camera that does see such back faces
+    (one inside a closed mesh that the light is outside of) gets their shadows by queries."""
     return _per_light_face_flags(scene, gpu, "front only", back_faces_unseen)
 
 
 def closed_faces(scene, gpu) -> list[wp.array]:
     """Per light of ``scene``, per triangle (uint8): 1 where the triangle's mesh is an opaque
     closed volume with the light outside (gpu_scene.closed_seen_from). Its triangles facing away
-    from the light are not listed (kernels/light_buffer.never_first_blocker): whatever they would
-    block, one facing the light blocks too."""
+    from the light are not listed (kernels/light_buffer_planes.never_first_blocker): whatever
+    they would block, one facing the light blocks too."""
     return _per_light_face_flags(scene, gpu, "closed", closed_seen_from)
 
 
@@ -127,7 +133,7 @@ class _Kept:
 def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     """The light buffers of every light of ``scene`` (uploaded as ``gpu``), kept in the scene cache.
 
-    Triangle interiors are marked clear (kernels/light_buffer.mark_clear_interiors) when the
+    Triangle interiors are marked clear (kernels/light_buffer_interiors.mark_clear_interiors) when the
     buffers are first reused, for a second frame: the marks can cost as much as the rest of the
     build and pay off only over frames whose lights and geometry stay put, so a light moving every
     frame never pays for them. No triangle is marked where no shadow ray leaves it
@@ -151,8 +157,8 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
 
 def _build(scene, gpu, threads: int) -> lb.LightBuffers:
     """build's light buffers, their triangles marked clear as a whole but no interiors."""
-    for kernel in (lb.nearest_surface_distance, lb.count_cells, lb.fill_cells, lb.light_planes, lb.finish_cells,
-                   lb.mark_clear_triangles, lb.mark_clear_interiors):
+    for kernel in (nearest_surface_distance, count_cells, fill_cells, light_planes, finish_cells,
+                   mark_clear_triangles, mark_clear_interiors):
         load_for_cpu(kernel)
     positions, indices = gpu.data.positions, gpu.data.indices
     triangles = len(indices) // 3
@@ -182,7 +188,7 @@ def _build(scene, gpu, threads: int) -> lb.LightBuffers:
     counts = huge_pages.zeros(max(len(views), 1) * cells, wp.int32)
 
     def count(v):
-        wp.launch(lb.count_cells, dim=launch_threads(triangles), device="cpu",
+        wp.launch(count_cells, dim=launch_threads(triangles), device="cpu",
                   inputs=[positions, indices, views[v], v * cells, triangles, view_closed[v], counts])
 
     run_all(count, range(len(views)), threads)
@@ -215,7 +221,7 @@ def _build(scene, gpu, threads: int) -> lb.LightBuffers:
     cell_clear = huge_pages.zeros(entries, wp.uint8)
 
     def fill(v):
-        wp.launch(lb.fill_cells, dim=launch_threads(triangles), device="cpu",
+        wp.launch(fill_cells, dim=launch_threads(triangles), device="cpu",
                   inputs=[positions, indices, views[v], v * cells, triangles, view_closed[v], cursors, cell_faces,
                           cell_near])
 
@@ -226,19 +232,19 @@ def _build(scene, gpu, threads: int) -> lb.LightBuffers:
     # fills one or two faces)
     blocks = WORK_BLOCKS_PER_THREAD * threads
     rows = max(min(-(-side // blocks), BLOCK_CELLS // side), 1)
-    planes = wp.empty(max(triangles, 1), dtype=lb.LightPlane, device="cpu")
+    planes = wp.empty(max(triangles, 1), dtype=LightPlane, device="cpu")
     for light, (first, n) in enumerate(spans):
         if n == 0:
             continue
 
         def plane(block, view=views[first], light_front_only=front_only[light]):
             start, end = block
-            wp.launch(lb.light_planes, dim=launch_threads(end - start), device="cpu",
+            wp.launch(light_planes, dim=launch_threads(end - start), device="cpu",
                       inputs=[positions, indices, view, start, end, light_front_only, planes])
 
         def finish(job):
             v, row = job
-            wp.launch(lb.finish_cells, dim=min(rows, side - row), device="cpu",
+            wp.launch(finish_cells, dim=min(rows, side - row), device="cpu",
                       inputs=[positions, indices, planes, side, v * cells + row * side, cell_start,
                               cell_faces, cell_near, cell_clear])
 
@@ -250,7 +256,7 @@ def _build(scene, gpu, threads: int) -> lb.LightBuffers:
         run_all(finish, [(v, row) for v in range(first, first + n) for row in range(0, side, rows)
                          if filled(v, row)], threads)
     buffers = lb.LightBuffers()
-    buffers.views = wp.array(views if views else [lb.Projection()], dtype=lb.Projection, device="cpu")
+    buffers.views = wp.array(views if views else [Projection()], dtype=Projection, device="cpu")
     buffers.view_cells_per_radian = wp.array([cells_per_radian(view) for view in views] or [0.0], dtype=wp.float64,
                                              device="cpu")
     buffers.light_views = wp.array(spans if spans else [(0, 0)], dtype=wp.vec2i, device="cpu")
@@ -261,14 +267,14 @@ def _build(scene, gpu, threads: int) -> lb.LightBuffers:
     buffers.region_grids, buffers.region_clear = _no_regions()
     buffers.triangles = triangles
     buffers.resolution = side
-    _mark_triangles(lb.mark_clear_triangles, buffers, gpu, threads, front_only, parallel_views=False)
+    _mark_triangles(mark_clear_triangles, buffers, gpu, threads, front_only, parallel_views=False)
     return buffers
 
 
 def mark_interiors(scene, gpu, buffers: lb.LightBuffers, threads: int) -> lb.LightBuffers:
     """A copy of ``scene``'s light ``buffers`` (``scene`` uploaded as ``gpu``) with the interiors
     of the triangles not clear of their lights as a whole marked
-    (kernels/light_buffer.mark_clear_interiors), then the regions of the large ones left
+    (kernels/light_buffer_interiors.mark_clear_interiors), then the regions of the large ones left
     (mark_clear_regions), every light's, but for the triangles no shadow ray leaves
     (front_only_faces); build makes it on the first reuse. ``buffers`` are not changed (renders
     may be reading them); the copy shares all their arrays but the marks and the regions. Marks
@@ -278,7 +284,7 @@ def mark_interiors(scene, gpu, buffers: lb.LightBuffers, threads: int) -> lb.Lig
         setattr(marked, field, getattr(buffers, field))
     marked.triangle_clear = wp.clone(buffers.triangle_clear)
     front_only = front_only_faces(scene, gpu)
-    _mark_triangles(lb.mark_clear_interiors, marked, gpu, threads, front_only, parallel_views=True)
+    _mark_triangles(mark_clear_interiors, marked, gpu, threads, front_only, parallel_views=True)
     _mark_regions(scene, marked, gpu, threads, front_only)
     return marked
 
@@ -360,10 +366,10 @@ def _mark_regions(scene, buffers: lb.LightBuffers, gpu, threads: int, front_only
     def mark(job):
         light, slot, face, start, end = job
         n, first = (int(x) for x in grids[light * per_light + slot])
-        wp.launch(lb.mark_clear_regions, dim=launch_threads(end - start), device="cpu",
+        wp.launch(mark_clear_regions, dim=launch_threads(end - start), device="cpu",
                   inputs=[buffers, light, gpu.data.positions, gpu.data.indices, face, wp.vec2i(n, first), start, end])
 
-    load_for_cpu(lb.mark_clear_regions)
+    load_for_cpu(mark_clear_regions)
     jobs = []
     for light, slot, face in chosen:
         n = int(grids[light * per_light + slot][0])
@@ -441,7 +447,7 @@ def _work_blocks(items: int, threads: int) -> list[tuple[int, int]]:
     return [(start, min(start + per_block, items)) for start in range(0, items, per_block)]
 
 
-def cells_per_radian(view: lb.Projection) -> float:
+def cells_per_radian(view: Projection) -> float:
     """A bound, anywhere in a pinhole view, on the cells a direction crosses per radian it turns
     (0 for a parallel view): the half-size over the tangent of the half-angle, times 1 + tan^2 of
     the angle off the axis, at most 1 + tan_x^2 + tan_y^2 at the view's corners."""
@@ -461,7 +467,7 @@ def _clearances(gpu, lights) -> list[float]:
     if positional:
         points = wp.array(np.array([light.position for light in positional], np.float32), dtype=wp.vec3, device="cpu")
         out = wp.empty(len(positional), dtype=float, device="cpu")
-        wp.launch(lb.nearest_surface_distance, dim=len(positional), inputs=[gpu.data.mesh, points, out], device="cpu")
+        wp.launch(nearest_surface_distance, dim=len(positional), inputs=[gpu.data.mesh, points, out], device="cpu")
         distances = iter(out.numpy().astype(np.float64) * (1.0 - CLEARANCE_MARGIN))
     return [next(distances) if hasattr(light, "position") else np.inf for light in lights]
 
@@ -471,7 +477,7 @@ def no_light_buffers() -> lb.LightBuffers:
     """Light buffers for no light: the render kernel's argument when it traces no shadow rays; given
     with shadow rays, every light's rays go to the BVH."""
     buffers = lb.LightBuffers()
-    buffers.views = wp.array([lb.Projection()], dtype=lb.Projection, device="cpu")
+    buffers.views = wp.array([Projection()], dtype=Projection, device="cpu")
     buffers.view_cells_per_radian = wp.zeros(1, dtype=wp.float64, device="cpu")
     buffers.light_views = wp.array([(0, 0)], dtype=wp.vec2i, device="cpu")
     buffers.clearance = wp.zeros(1, dtype=float, device="cpu")

@@ -235,7 +235,7 @@ _together_turn = threading.Lock()
 
 def run_together(fn, threads: int, join: bool = True, cancel=None):
     """fn(k) for k = 0..threads-1 all at once, each on a pool thread of its own, for launches that
-    wait for each other (see kernels/raster.py's all_arrived), so none may queue behind another.
+    wait for each other (see kernels/barriers.py's all_arrived), so none may queue behind another.
     Concurrent calls take turns, lest one call's launches hold the pool while the others' wait
     for theirs. If one raises, or the caller is interrupted, ``cancel()`` must release the others
     (the raster sets its abort flag); it is called at once, from the failing launch's thread;

@@ -31,16 +31,19 @@ from . import huge_pages
 from .errors import InputError, InputTypeError
 from .parallel import run_all, run_together, thread_count
 from .scene_cache import PROCESS_WIDE
+from pbrwarp.kernels import binning
 from pbrwarp.kernels import occlusion as ok
 from pbrwarp.kernels import raster as rk
+from pbrwarp.kernels import sampling
 from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
-from pbrwarp.kernels.projection import projection_of
+from pbrwarp.kernels.projection import Projection, projection_of
+from pbrwarp.kernels.triangle_setup import MAX_IMAGE_SIZE, RasterMesh
+from pbrwarp.kernels.visibility_buffer import VisibilityTarget
 from pbrwarp.kernels.work_queue import RANGE_STRIDE
 
 NO_TRIANGLE = 0xFFFFFFFFFFFFFFFF
-TILE_SIZE = int(rk.TILE_SIZE)
-MAX_IMAGE_SIZE = rk.MAX_IMAGE_SIZE
+TILE_SIZE = int(binning.TILE_SIZE)
 # Fewest vertices worth a piece of projection: below this, sharing costs more than the work.
 MIN_VERTEX_SHARE = 4096
 # Batches of triangles per thread in each pass, the thread's own range of them taken first: a
@@ -97,9 +100,10 @@ def _replay_launch(recorded: dict, key, kernel, inputs: list):
     ``recorded`` (one thread's _scratch.arrays) under ``key``, packed again but for the arrays
     that are the very objects it last had (an array's memory never moves) and the plain numbers
     equal to the last ones; a struct may have been changed in place, so structs are always
-    packed: packing visibility_pipeline's 41 arguments costs ~0.12 ms a launch (development), a
-    few percent of a 512² call. The record keeps its last inputs (the caller's mesh and buffer
-    arrays among them) alive until the next call."""
+    packed (cheaply: an instance keeps its fields packed as they are set, see _kernel_struct).
+    Packing every argument anew cost ~0.12 ms a launch (development, when visibility_pipeline took
+    41 separate arguments), a few percent of a 512² call. The record keeps its last inputs (the
+    caller's mesh and buffer arrays among them) alive until the next call."""
     entry = recorded.get((key, "launch"))
     if entry is None:
         command = wp.launch(kernel, dim=1, device="cpu", inputs=inputs, record_cmd=True)
@@ -121,6 +125,21 @@ def _replay_launch(recorded: dict, key, kernel, inputs: list):
 _PLAIN_NUMBERS = (int, float, bool)
 
 
+def _kernel_struct(recorded: dict, kind, **fields):
+    """The instance of Warp struct ``kind`` kept in ``recorded`` (one thread's _scratch.arrays),
+    with ``fields`` set: only those that differ from its last ones (arrays: not the very object),
+    as setting an array field builds its descriptor anew."""
+    instance = recorded.get(kind)
+    if instance is None:
+        instance = recorded[kind] = kind()
+    for name, value in fields.items():
+        last = getattr(instance, name)
+        if value is last or (not isinstance(value, wp.array) and type(value) is type(last) and value == last):
+            continue
+        setattr(instance, name, value)
+    return instance
+
+
 # Cost models for choosing between rasterizing and ray casting primary visibility, fitted on 2
 # cores by bench/visibility.py (bench/results/visibility.md, least squares weighted by 1/time):
 # raster seconds ~ RASTER_SECONDS_PER_TRIANGLE * triangles + RASTER_SECONDS_PER_SAMPLE * samples,
@@ -129,9 +148,9 @@ RASTER_SECONDS_PER_TRIANGLE = 10.5e-9
 RASTER_SECONDS_PER_SAMPLE = 5.06e-9
 RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 7.21e-9
 
-KERNELS = (rk.sample_positions, rk.visibility_pipeline, ok.cluster_bounds, projection_of)
+KERNELS = (sampling.sample_positions, rk.visibility_pipeline, ok.cluster_bounds, projection_of)
 CLUSTER_SIZE = int(ok.CLUSTER_SIZE)
-# count_batch draws a cluster from one 64-bit mask of its triangles (kernels/raster.py triangles_to_count)
+# count_batch draws a cluster from one 64-bit mask of its triangles (kernels/binning.py triangles_to_count)
 assert CLUSTER_SIZE <= 64, "a cluster's triangles must fit in one uint64 mask"
 
 
@@ -157,7 +176,7 @@ def _load_kernels():
 @functools.cache
 def _os_yield_address() -> int:
     """The address of the C library's sched_yield, which the raster's waiting launches call now
-    and then (kernels/raster.py all_arrived), or 0 where there is none (Windows)."""
+    and then (kernels/barriers.py all_arrived), or 0 where there is none (Windows)."""
     try:
         return ctypes.cast(ctypes.CDLL(None).sched_yield, ctypes.c_void_p).value or 0
     except (AttributeError, OSError, TypeError):
@@ -211,7 +230,7 @@ def _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, threads):
 
         def launch(job):
             _, first_row, rows = job
-            wp.launch(rk.sample_positions, dim=rows * width * spp, device="cpu",
+            wp.launch(sampling.sample_positions, dim=rows * width * spp, device="cpu",
                       inputs=[spp, grid_m, grid_n, seed, width, first_row, out])
 
         run_all(launch, _chunks(height, max(threads, math.ceil(height * width * spp / SAMPLES_PER_JOB))), threads)
@@ -232,13 +251,13 @@ def sample_positions(width: int, height: int, spp: int = 1, grid_m: int = 1, gri
     return _cached_sample_positions(width, height, spp, grid_m, grid_n, seed, thread_count(threads))
 
 
-def projection(cam: CameraData, orthographic: bool = False) -> rk.Projection:
+def projection(cam: CameraData, orthographic: bool = False) -> Projection:
     """World-to-screen mapping of ``cam`` in float64, the exact inverse of camera_ray_direction;
     or, ``orthographic``, the parallel projection along cam.forward whose view spans
     cam.right and cam.up (half-extents in world units) about cam.eye: kernels/projection.py
     camera_projection, the very one visibility_buffer's launches derive."""
     _load_kernels()
-    out = wp.empty(1, dtype=rk.Projection, device="cpu")
+    out = wp.empty(1, dtype=Projection, device="cpu")
     usable = wp.empty(1, dtype=wp.int32, device="cpu")
     wp.launch(projection_of, dim=1, device="cpu", inputs=[cam, int(bool(orthographic)), out, usable])
     if not usable.numpy()[0]:
@@ -452,15 +471,8 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     def run(first_stage, stop_after_binning):
         def launch(k):
             _replay_launch(scratch, ("pipeline", k), rk.visibility_pipeline,
-                           [k, threads, first_stage, int(stop_after_binning), _os_yield_address(), positions,
-                            indices, vertices, layout.screen, layout.depth_weights, cam, int(bool(orthographic)),
-                            samples, spp, MIN_VERTEX_SHARE, layout.batch_size, layout.batch_stride, triangles,
-                            layout.tiles_x, cull_back_faces, layout.binned_count,
-                            layout.binned_face, layout.binned_rect, layout.tile_counts, layout.bad_indices,
-                            layout.cursors, layout.bin_start, layout.bin_total, bins, layout.busy_tiles,
-                            *cluster_arrays, layout.cluster_rect, layout.cluster_nearest, sync, layout.batch_ranges,
-                            released, epoch,
-                            out])
+                           [k, first_stage, int(stop_after_binning), work, mesh, cam, int(bool(orthographic)),
+                            target, binned, culling])
 
         def abort():
             # a launch failed or the caller was interrupted: the others stop waiting at their next
@@ -473,10 +485,27 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
             released_view[0] = epoch
 
         epoch = scratch["epoch"] = scratch.get("epoch", 0) + 1
+        # the kernel's structs, this thread's kept across calls, only their changed fields set
+        work = _kernel_struct(scratch, rk.Launches, count=threads, sync=sync, batch_ranges=layout.batch_ranges,
+                              released=released, epoch=epoch, os_yield=_os_yield_address(),
+                              batch_size=layout.batch_size, batch_stride=layout.batch_stride,
+                              min_vertex_share=MIN_VERTEX_SHARE)
+        mesh = _kernel_struct(scratch, RasterMesh, positions=positions, indices=indices, vertex_count=vertices,
+                              triangles=triangles, cull_back_faces=cull_back_faces, screen=layout.screen,
+                              depth_weights=layout.depth_weights)
+        target = _kernel_struct(scratch, VisibilityTarget, out=out, samples=samples, spp=spp)
+        binned = _kernel_struct(scratch, binning.Bins, tiles_x=layout.tiles_x, binned_count=layout.binned_count,
+                                binned_face=layout.binned_face, binned_rect=layout.binned_rect,
+                                tile_counts=layout.tile_counts, bad_indices=layout.bad_indices, cursors=layout.cursors,
+                                bin_start=layout.bin_start, bin_total=layout.bin_total, slots=bins,
+                                busy_tiles=layout.busy_tiles)
+        culling = _kernel_struct(scratch, rk.ClusterCulling, lower=cluster_arrays[0], upper=cluster_arrays[1],
+                                 axis=cluster_arrays[2], spread=cluster_arrays[3], rect=layout.cluster_rect,
+                                 nearest=layout.cluster_nearest)
         try:
             join = run_together(launch, threads, join=False, cancel=abort)
         finally:
-            released_view[0] = epoch  # the pool threads' launches return (kernels/raster.py wait_for_release)
+            released_view[0] = epoch  # the pool threads' launches return (kernels/barriers.py wait_for_release)
         if layout.sync_view[int(rk.ABORTED)] != 0:
             join()  # a pool thread's launch failed: its error, raised here
             raise RuntimeError("the raster's launches were aborted")

@@ -5,6 +5,7 @@ import pytest
 import warp as wp
 
 from pbrwarp.kernels import brdf as kb
+from pbrwarp.kernels import microfacet as km
 
 import reference as ref
 
@@ -29,8 +30,8 @@ def eval_terms(
     i = wp.tid()
     h = wp.normalize(v[i] + l[i])
     r = roughness[i]
-    out_d[i] = kb.D_GGX(r * r, n_dot_h[i], sin_sq[i])
-    out_g[i] = kb.V_SmithSchlickGGX(wp.dot(n[i], v[i]), wp.dot(n[i], l[i]), r)
+    out_d[i] = km.D_GGX(r * r, n_dot_h[i], sin_sq[i])
+    out_g[i] = km.V_SmithSchlickGGX(wp.dot(n[i], v[i]), wp.dot(n[i], l[i]), r)
     f0 = kb.specular_f0(base[i], metallic[i], specular[i])
     out_f[i] = kb.F_Schlick(f0, kb.specular_f90(metallic[i], specular[i]), wp.dot(v[i], h))
     out_brdf[i] = default_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
@@ -77,6 +78,26 @@ def evaluated():
 
 def rel_err(got, want):
     return np.max(np.abs(got - want) / np.maximum(np.abs(want), 1e-30))
+
+
+@wp.kernel(enable_backward=False)
+def alphas_of(roughness: wp.array(dtype=float), out: wp.array(dtype=float)):
+    i = wp.tid()
+    out[i] = km.alpha_from_roughness(roughness[i])
+
+
+def test_alpha_from_roughness_is_roughness_squared_in_kernels_and_host_code():
+    """GGX alpha = roughness^2 (Burley 2012): in a kernel the float32 square, correctly rounded
+    (the float64 product of two float32 values is exact); called from Python, the float64 square
+    that host code (kernels/prefilter.py) has always computed."""
+    roughness = np.concatenate([[0.0, 1e-20, 1e-4, 0.05, 0.5, 1.0], np.random.default_rng(7).uniform(0, 1, 1000)])
+    r32 = roughness.astype(np.float32)
+    out = wp.zeros(len(r32), dtype=float, device="cpu")
+    wp.launch(alphas_of, dim=len(r32), inputs=[wp.array(r32, dtype=float, device="cpu"), out], device="cpu")
+    np.testing.assert_array_equal(out.numpy(), (r32.astype(np.float64) ** 2).astype(np.float32))
+    for r in (0.0, 0.1, 1.0 / 3.0, 0.7, 1.0):
+        alpha = km.alpha_from_roughness(r)
+        assert type(alpha) is float and alpha == r * r
 
 
 def test_d_ggx_matches_reference(evaluated):

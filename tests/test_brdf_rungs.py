@@ -9,6 +9,7 @@ import warp as wp
 
 import pbrwarp as pw
 from pbrwarp.kernels import brdf as kb
+from pbrwarp.kernels import microfacet as km
 
 from scenes import head_on_camera, render_checked
 
@@ -21,11 +22,11 @@ def eval_scalar_terms(nv: wp.array(dtype=float), nl: wp.array(dtype=float), lh: 
     i = wp.tid()
     a = r[i] * r[i]
     out[i, 0] = kb.Fd_Burley(nv[i], nl[i], lh[i], r[i])
-    out[i, 1] = kb.D_BlinnPhong(a, nh[i])
-    out[i, 2] = kb.V_SmithGGXSeparable(nv[i], nl[i], a)
-    out[i, 3] = kb.V_SmithGGXCorrelated(nv[i], nl[i], a)
-    out[i, 4] = kb.V_SmithGGXCorrelatedFast(nv[i], nl[i], a)
-    out[i, 5] = kb.V_Implicit(nv[i], nl[i], a)
+    out[i, 1] = km.D_BlinnPhong(a, nh[i])
+    out[i, 2] = km.V_SmithGGXSeparable(nv[i], nl[i], a)
+    out[i, 3] = km.V_SmithGGXCorrelated(nv[i], nl[i], a)
+    out[i, 4] = km.V_SmithGGXCorrelatedFast(nv[i], nl[i], a)
+    out[i, 5] = km.V_Implicit(nv[i], nl[i], a)
 
 
 @wp.kernel(enable_backward=False)

@@ -18,7 +18,7 @@ from pbrwarp.kernels.direction_sampling import (
     sample_cosine_hemisphere,
     sample_ggx_vndf,
 )
-from pbrwarp.kernels.brdf import D_GGX
+from pbrwarp.kernels.microfacet import D_GGX
 from pbrwarp.kernels.equirect import downsample, texel_solid_angles
 from pbrwarp.kernels.ibl import (
     EnvironmentData,

@@ -13,9 +13,11 @@ import warp as wp
 import pbrwarp as pw
 from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.lights import light_sampler
-from pbrwarp.kernels.light_buffer import (CLEAR, INTERIOR_CLEAR, INTERIOR_SHRINKS, MAX_REGION_TRIANGLES, REGION_SLACK,
-                                          REGIONS_CLEAR, UNDECIDED, LightBuffers, light_buffer_occlusion,
-                                          ray_leaves_clear, solid_separated, swept_solid)
+from pbrwarp.kernels.light_buffer import (CLEAR, INTERIOR_CLEAR, INTERIOR_SHRINKS, MAX_REGION_TRIANGLES, REGIONS_CLEAR,
+                                          LightBuffers)
+from pbrwarp.kernels.light_buffer_interiors import solid_separated, swept_solid
+from pbrwarp.kernels.light_buffer_query import UNDECIDED, light_buffer_occlusion, ray_leaves_clear
+from pbrwarp.kernels.light_buffer_regions import REGION_SLACK
 from pbrwarp.kernels.robust import RAY_FAR, SHADOW_RAY_SHORTENING, offset_ray_origin, triangle_hit_error
 from pbrwarp.kernels.scene_data import SceneData
 from pbrwarp.light_buffers import build, no_light_buffers
@@ -663,7 +665,7 @@ def test_shadow_cache_keeps_the_shadows_of_every_light(monkeypatch):
     """The shadow cache remembers the last blocker of the first SHADOW_CACHE_LIGHTS lights only:
     with more lights than that, some shadowed by the sphere and some not, every light's shadows
     are still those the BVH alone casts."""
-    from pbrwarp.kernels.light_buffer import SHADOW_CACHE_LIGHTS
+    from pbrwarp.kernels.light_buffer_query import SHADOW_CACHE_LIGHTS
 
     scene = scene_with_floor(icosphere(4), pw.PointLight(position=(2.0, 3.0, 2.0), intensity=20.0))
     for k in range(SHADOW_CACHE_LIGHTS + 1):

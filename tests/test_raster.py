@@ -17,8 +17,12 @@ import warp as wp
 from pbrwarp import parallel
 from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.camera import CameraData, camera_ray_direction
-from pbrwarp.kernels import raster as rk
-from pbrwarp.kernels.raster import covered_steps, ray_triangle_intersection, visible_triangle
+from pbrwarp.kernels import triangle_setup as ts
+from pbrwarp.kernels.binning import triangles_to_count
+from pbrwarp.kernels.coverage import covered_steps
+from pbrwarp.kernels.projection import PIXEL, Projection
+from pbrwarp.kernels.ray_triangle import ray_triangle_intersection
+from pbrwarp.kernels.visibility_buffer import visible_triangle
 from pbrwarp.kernels.robust import RAY_FAR
 from pbrwarp.kernels.sampling import multi_jittered_sample
 from pbrwarp.meshes import bunny, icosphere
@@ -612,7 +616,7 @@ def test_a_call_does_not_depend_on_what_earlier_calls_left_in_the_threads_scratc
 
 def test_back_to_back_calls_release_their_pool_launches():
     """The pool threads' launches of a call return only once its Python has released them
-    (kernels/raster.py wait_for_release), and the next call zeroes the shared slots at once: a
+    (kernels/barriers.py wait_for_release), and the next call zeroes the shared slots at once: a
     pool launch that sees its release late, after the next call began, must still return, or
     the next call's launches would wait for it forever. Calls in quick succession, alternating
     thread counts and shapes (layouts sharing their scratch), must all finish, and match."""
@@ -823,7 +827,7 @@ def test_calls_stopping_after_binning_leave_no_launch_waiting_for_the_next():
 def busy_masks(indices: wp.array(dtype=wp.int32), screen: wp.array(dtype=wp.vec2i), vertex_count: int, spp: int,
                width: int, height: int, out: wp.array(dtype=wp.uint64)):
     k = wp.tid()
-    out[k] = rk.triangles_to_count(indices, screen, vertex_count, 64 * k, wp.min(64 * k + 64, indices.shape[0] / 3),
+    out[k] = triangles_to_count(indices, screen, vertex_count, 64 * k, wp.min(64 * k + 64, indices.shape[0] / 3),
                                    spp, width, height)
 
 
@@ -834,16 +838,16 @@ def test_triangles_to_count_skips_exactly_the_projected_ones_holding_no_sample(s
     triangles with an index out of range or a vertex not projected are always counted."""
     rng = np.random.default_rng(spp)
     width, height, vertices, triangles = 40, 30, 500, 1000
-    pixel = int(rk.PIXEL)
+    pixel = int(PIXEL)
     screen = np.stack([rng.integers(-3 * pixel, 43 * pixel, vertices), rng.integers(-3 * pixel, 33 * pixel, vertices)], 1)
-    screen[::7] = [int(rk.BEHIND_CAMERA), 0]
-    screen[3::11] = [int(rk.OUTSIDE_GUARD_BAND), 0]
+    screen[::7] = [int(ts.BEHIND_CAMERA), 0]
+    screen[3::11] = [int(ts.OUTSIDE_GUARD_BAND), 0]
     # small triangles (most hold no sample): three points within a pixel of a vertex, not
     # projected where that vertex is not
     centres = rng.integers(0, vertices, triangles)
     near = rng.integers(-pixel, pixel, (triangles, 3, 2))
     points = np.concatenate([screen, (screen[centres][:, None, :] + near).reshape(-1, 2)])
-    points[vertices:][np.repeat(screen[centres, 0] <= int(rk.OUTSIDE_GUARD_BAND), 3)] = [int(rk.BEHIND_CAMERA), 0]
+    points[vertices:][np.repeat(screen[centres, 0] <= int(ts.OUTSIDE_GUARD_BAND), 3)] = [int(ts.BEHIND_CAMERA), 0]
     faces = vertices + np.arange(3 * triangles).reshape(-1, 3)
     faces[5::97, 1] = len(points) + 3  # out of range
     faces[9::89, 2] = -1
@@ -857,7 +861,7 @@ def test_triangles_to_count_skips_exactly_the_projected_ones_holding_no_sample(s
             assert busy[t] == 1
             continue
         q = points[face].astype(np.int64)
-        if np.any(q[:, 0] <= int(rk.OUTSIDE_GUARD_BAND)):
+        if np.any(q[:, 0] <= int(ts.OUTSIDE_GUARD_BAND)):
             assert busy[t] == 1
             continue
         lo, hi = q.min(axis=0), q.max(axis=0)
@@ -870,9 +874,9 @@ def test_triangles_to_count_skips_exactly_the_projected_ones_holding_no_sample(s
 
 
 @wp.kernel(enable_backward=False)
-def project_all(positions: wp.array(dtype=wp.vec3), proj: rk.Projection, screen: wp.array(dtype=wp.vec2i),
+def project_all(positions: wp.array(dtype=wp.vec3), proj: Projection, screen: wp.array(dtype=wp.vec2i),
                 depth_weights: wp.array(dtype=wp.float64)):
-    rk.project_vertices(positions, proj.to_camera, proj.eye, proj.half_width, proj.half_height, proj.orthographic,
+    ts.project_vertices(positions, proj.to_camera, proj.eye, proj.half_width, proj.half_height, proj.orthographic,
                         0, positions.shape[0], screen, depth_weights)
 
 
@@ -895,7 +899,7 @@ def test_vertex_projection_against_float64(orthographic):
         x, y = screen_coordinates(cam, c, orthographic)
         weight = c[:, 2] if orthographic else 1 / c[:, 2]
     behind = c[:, 2] <= 0
-    outside = ~behind & ~((np.abs(x) <= float(rk.GUARD_BAND)) & (np.abs(y) <= float(rk.GUARD_BAND)))
+    outside = ~behind & ~((np.abs(x) <= float(ts.GUARD_BAND)) & (np.abs(y) <= float(ts.GUARD_BAND)))
     assert behind.sum() > 100 and outside.sum() > 100
     doubled = np.zeros((2 * len(points), 3), np.float32)
     doubled[::2] = points
@@ -904,8 +908,8 @@ def test_vertex_projection_against_float64(orthographic):
         weights = wp.empty(len(points), dtype=wp.float64)
         wp.launch(project_all, dim=1, inputs=[positions, proj, screen, weights])
         q, w = screen.numpy(), weights.numpy()
-        assert np.all(q[behind] == [int(rk.BEHIND_CAMERA), 0])
-        assert np.all(q[outside] == [int(rk.OUTSIDE_GUARD_BAND), 0])
+        assert np.all(q[behind] == [int(ts.BEHIND_CAMERA), 0])
+        assert np.all(q[outside] == [int(ts.OUTSIDE_GUARD_BAND), 0])
         shown = ~behind & ~outside
         pixels = 4096.0
         np.testing.assert_allclose(q[shown, 0] / pixels, x[shown], rtol=0, atol=0.5 / pixels + 1e-9 * np.abs(x[shown]).max())
