@@ -9,7 +9,7 @@ import os
 import numpy as np
 
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
-from pbrwarp.kernels.raster import MAX_IMAGE_SIZE
+from pbrwarp.kernels.triangle_setup import MAX_IMAGE_SIZE
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 
