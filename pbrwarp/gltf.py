@@ -37,7 +37,7 @@ from .camera import Camera
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError
 from .lights import DirectionalLight, PointLight, SpotLight
 from .materials import Material
-from .scene import Primitive, primitive_from_trimesh, transform_primitive
+from .primitive import Primitive, primitive_from_trimesh, transform_primitive
 from .tangents import generate_tangents
 from .textures import Texture
 
