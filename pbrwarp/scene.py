@@ -2,22 +2,29 @@
 
 from __future__ import annotations
 
+import os
+import warnings
+
 import numpy as np
 
 from . import validate
 from .camera import Camera
-from .errors import AssetFormatError, InputError, InputTypeError
+from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
 from .gltf import load_gltf
 from .lights import DirectionalLight, PointLight, SpotLight
+from .load_limits import LoadLimits
 from .materials import Material
 # Primitive and its conversions live in their own module (the glTF loader builds on them too);
 # they stay importable from here.
 from .primitive import Primitive, material_from_trimesh, primitive_from_trimesh, transform_primitive, unit_rows
+from .textures import open_image
 
 __all__ = ["LOADABLE", "Primitive", "Scene", "material_from_trimesh", "primitive_from_trimesh",
            "transform_primitive", "unit_rows"]
 
 LOADABLE = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off")
+# Textures a mesh file's material may name, whose header _ConfinedFiles checks before trimesh decodes them.
+_IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".webp", ".gif", ".bmp", ".tga", ".tif", ".tiff")
 
 
 class Scene:
@@ -69,12 +76,28 @@ class Scene:
 
     # ------------------------------------------------------------------ loading
     @classmethod
-    def load(cls, path) -> "Scene":
+    def load(cls, path, *, allowed_roots=None, limits: LoadLimits | None = None) -> "Scene":
         """Read a .glb/.gltf/.obj/.ply/.stl/.off file (node transforms applied; glTF materials,
-        tangents, samplers, lights and cameras kept)."""
+        tangents, samplers, lights and cameras kept).
+
+        - ``allowed_roots``: folders besides the model's own whose files the model may name
+          (default None: only the model's folder). A glTF buffer or image URI, an OBJ's material
+          library or a texture path is resolved (``..`` and symbolic links followed) and refused,
+          before anything is opened, unless it lies inside one of these folders; glTF ``data:``
+          URIs are always read.
+        - ``limits``: a :class:`pbrwarp.LoadLimits` bounding texture sizes and, for glTF, the
+          node graph, instance, vertex and triangle counts; every size is checked against it
+          before anything is decoded or allocated (default None: ``LoadLimits()``).
+
+        Raises ``AssetNotFoundError`` for a missing file and ``AssetFormatError`` naming the file
+        and the problem for a corrupt one, one that names a file outside the allowed folders or
+        one past a limit. docs/loading.md lists what is read, what is refused and why.
+        """
         path, ext = validate.readable_file(path, "scene file", LOADABLE, "meshes and glTF scenes")
+        roots = validate.allowed_roots(allowed_roots)
+        limits = LoadLimits.of(limits)
         if ext in (".glb", ".gltf"):
-            content = load_gltf(path)
+            content = load_gltf(path, allowed_roots=roots, limits=limits)
             scene = cls()
             scene.primitives.extend(content.primitives)
             scene.lights.extend(content.lights)
@@ -82,10 +105,15 @@ class Scene:
             return scene
         import trimesh
 
+        files = _ConfinedFiles(path, roots, limits)
         try:
-            loaded = trimesh.load(path, force="scene")
+            loaded = trimesh.load(path, force="scene", resolver=files)
         except Exception as err:  # trimesh raises many types for corrupt files
             raise AssetFormatError(f"cannot read {path}: {type(err).__name__}: {err}") from None
+        if files.refused:  # trimesh logs a file it cannot get and goes on without it
+            raise files.refused[0]
+        for name in files.missing:
+            warnings.warn(f"{path} names the file {name!r}, which does not exist; loaded without it", stacklevel=2)
         try:
             scene = cls.from_trimesh(loaded)
         except (InputError, InputTypeError) as err:  # NaN normals, overflowing vertices, ...
@@ -124,3 +152,38 @@ class Scene:
     @property
     def triangle_count(self) -> int:
         return sum(len(p.faces) for p in self.primitives)
+
+
+class _ConfinedFiles:
+    """The trimesh resolver of a mesh file's material libraries and textures: only files inside
+    its folder or the allowed roots (validate.confined_path; names are plain paths, not
+    percent-encoded), images of any format Pillow reads only within ``limits.max_texture_side``. trimesh swallows a
+    resolver's errors, so refusals and missing files are also kept for Scene.load to report."""
+
+    def __init__(self, model: str, roots: tuple[str, ...], limits: LoadLimits):
+        self.model, self.roots, self.limits = model, roots, limits
+        self.base_dir = os.path.dirname(os.path.abspath(model))
+        self.file_name = os.path.basename(model)
+        self.refused: list[AssetFormatError] = []
+        self.missing: list[str] = []
+
+    def get(self, name: str) -> bytes:
+        what = f"the file {name!r} it names"
+        try:
+            real = validate.confined_path(name.strip(), self.base_dir, self.roots, what, self.model,
+                                          percent_encoded=False)
+            data = validate.read_confined(real, what, self.model)
+            if os.path.splitext(real)[1].lower() in _IMAGE_EXTENSIONS:
+                try:
+                    open_image(data, what, self.limits.max_texture_side, formats=None).close()
+                except InputError as err:
+                    raise AssetFormatError(f"cannot load {self.model}: {err}") from None
+            return data
+        except AssetNotFoundError:
+            self.missing.append(name)
+            raise
+        except AssetFormatError as err:
+            self.refused.append(err)
+            raise
+
+    __getitem__ = get

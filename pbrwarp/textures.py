@@ -130,24 +130,26 @@ IMAGE_FORMATS = ("PNG", "JPEG", "WEBP", "GIF", "BMP", "TGA")
 _HEADER_LOCK = threading.Lock()
 
 
-def open_image(data: bytes, what: str, max_side: int):
+def open_image(data: bytes, what: str, max_side: int, formats=IMAGE_FORMATS):
     """``data`` opened as a Pillow image with only its header read (nothing decoded), refused
-    with an ``InputError`` when it is not an image of IMAGE_FORMATS or a side exceeds
-    ``max_side`` texels (LoadLimits.max_texture_side). Pillow's own limit on decoded pixels
-    (``PIL.Image.MAX_IMAGE_PIXELS``) applies too: past it the image is refused, not decoded."""
+    with an ``InputError`` when it is not an image of ``formats`` (None: any format Pillow
+    reads) or a side exceeds ``max_side`` texels (LoadLimits.max_texture_side). Pillow's
+    warning about images past ``PIL.Image.MAX_IMAGE_PIXELS`` is silenced, as the side limit
+    says it more precisely; Pillow refuses images of more than twice that many pixels itself."""
     from PIL import Image
 
     try:
         with _HEADER_LOCK, warnings.catch_warnings():
-            warnings.simplefilter("error", Image.DecompressionBombWarning)
-            image = Image.open(io.BytesIO(data), formats=IMAGE_FORMATS)
-    except (Image.DecompressionBombWarning, Image.DecompressionBombError) as err:
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            image = Image.open(io.BytesIO(data), formats=formats)
+    except Image.DecompressionBombError as err:
         raise InputError(f"{what} is refused by Pillow's limit on decoded pixels (PIL.Image.MAX_IMAGE_PIXELS): "
                          f"{err}") from None
     except Exception as err:  # Pillow raises several types for bad image data
         raise InputError(f"{what} cannot be decoded: {type(err).__name__}: {err}") from None
     width, height = image.size
     if max(width, height) > max_side:
+        image.close()
         raise InputError(f"{what} is {width} x {height} texels, larger than {max_side} texels a side "
                          "(LoadLimits.max_texture_side); it is refused before decoding")
     return image
