@@ -618,7 +618,7 @@ def _scene_nodes(doc: _Document) -> list[tuple[int, np.ndarray]]:
     """(node index, world matrix) for every node of the default scene, parents first.
 
     The walk is iterative and visits each node once: glTF node hierarchies are disjoint trees
-    (glTF 2.0, section 3.5.3: no cycles, at most one parent per node), so a node reached a second
+    (glTF 2.0, section 3.5.2: no cycles, at most one parent per node), so a node reached a second
     time -- its own ancestor, the child of two nodes, a root that is also a child, a root listed
     twice -- is an error, as is a node deeper than ``LoadLimits.max_node_depth``. Instancing in
     glTF is a mesh used by several nodes, which _check_instancing bounds."""
@@ -680,7 +680,7 @@ def _second_visit(index: int, parent: int | None, parents: dict) -> str:
             return f"node {index} is its own ancestor (a cycle in the node hierarchy)"
         ancestor = parents[ancestor]
     return (f"node {index} is reached twice, from {named(parents[index])} and from {named(parent)}; glTF "
-            "node hierarchies are trees (one parent per node, glTF 2.0 section 3.5.3)")
+            "node hierarchies are trees (one parent per node, glTF 2.0 section 3.5.2)")
 
 
 def _check_instancing(doc: _Document, nodes: list):

@@ -62,7 +62,7 @@ def image_to_rgba(image, what: str = "texture") -> np.ndarray:
 
     Other integer arrays are scaled by their type's maximum (16-bit PNGs); float arrays are taken
     as they are. Greyscale is replicated to RGB; a missing alpha channel becomes opaque. A
-    read-only (H, W, 4) uint8 array is returned as it is, anything else is copied.
+    read-only (H, W, 4) uint8 or float32 array is returned as it is, anything else is copied.
     """
     try:
         from PIL import Image
@@ -79,9 +79,11 @@ def image_to_rgba(image, what: str = "texture") -> np.ndarray:
         raise InputError(f"{what} must have shape (H, W) or (H, W, 1..4), got {image.shape}")
     if arr.shape[0] == 0 or arr.shape[1] == 0:
         raise InputError(f"{what} is empty (shape {image.shape})")
+    if arr.shape[2] == 4 and not arr.flags.writeable and arr.dtype in (np.uint8, np.float32):
+        if arr.dtype == np.float32 and not np.all(np.isfinite(arr)):
+            raise InputError(f"{what} contains NaN or Inf texels")
+        return arr  # nobody can change it through this array: no copy needed
     if arr.dtype == np.uint8:
-        if arr.shape[2] == 4 and not arr.flags.writeable:
-            return arr
         opaque = 255
     elif np.issubdtype(arr.dtype, np.integer):
         arr = arr.astype(np.float32) / float(np.iinfo(arr.dtype).max)
