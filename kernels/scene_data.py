@@ -3,7 +3,7 @@
 import warp as wp
 
 from .lights import LightData
-from .textures import TextureData
+from .textures import Texels, TextureData
 
 wp.set_module_options({"enable_backward": False})
 
@@ -49,7 +49,7 @@ class SceneData:
     face_material: wp.array(dtype=wp.int32)
     materials: wp.array(dtype=MaterialData)
     textures: wp.array(dtype=TextureData)
-    texels: wp.array(dtype=wp.vec4)
+    texels: Texels
     lights: wp.array(dtype=LightData)
     num_lights: int
 

@@ -42,6 +42,7 @@ from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeE
 from .frame import Frame
 from .ibl import IBL
 from .lights import DirectionalLight, PointLight, SpotLight
+from .load_limits import LoadLimits
 from .materials import Material
 from .features import Features
 from .render import explain, render
@@ -51,7 +52,7 @@ from .textures import Texture
 
 __all__ = [
     "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "IBL", "InputError",
-    "InputTypeError", "Material", "PbrwarpError", "PointLight", "Primitive", "ResourceError", "Scene", "ShadowMap", "SpotLight",
+    "InputTypeError", "LoadLimits", "Material", "PbrwarpError", "PointLight", "Primitive", "ResourceError", "Scene", "ShadowMap", "SpotLight",
     "Texture", "check", "explain", "render",
 ]
 __version__ = "0.1.0"

@@ -1,28 +1,27 @@
-"""glTF 2.0 loading: trimesh for geometry and the scene graph, the file itself for the rest.
+"""glTF 2.0 loading: the file's meshes, materials, node graph, lights and cameras.
 
-trimesh (5.2) reads triangles, node transforms and instancing well, but drops what a PBR
-renderer needs: TANGENT, normalTexture.scale, occlusionTexture.strength, texCoord indices,
-samplers, texture transforms, material extensions, lights and all cameras but the first. This
-module reads those from the glTF JSON and binary buffers with a small accessor reader, and
-matches each trimesh geometry to its glTF (mesh, primitive) so per-vertex data lines up.
+pbrwarp reads glTF itself, with a small accessor reader over the JSON and binary buffers,
+because what a PBR renderer needs (TANGENT, normalTexture.scale, occlusionTexture.strength,
+texCoord indices, samplers, texture transforms, material extensions, lights, every camera) is
+what general mesh libraries drop, and because it walks the node graph once, with its own limits,
+where a general scene graph does not bound its work (docs/loading.md).
 
-Supported: .glb and .gltf (buffers and images embedded, as ``data:`` URIs or as files next to
-the .gltf); accessors of every component type, normalized or not, interleaved (byteStride) and
-sparse; triangle lists and strips; PNG/JPEG (any format Pillow decodes) textures; samplers' wrap
-modes; KHR_texture_transform, KHR_materials_specular (specularFactor),
+Supported: .glb and .gltf (buffers and images embedded, as ``data:`` URIs or as files inside the
+model's folder); accessors of every component type, normalized or not, interleaved (byteStride)
+and sparse; triangle lists and strips; PNG and JPEG textures (and WebP, GIF, BMP, TGA);
+samplers' wrap modes; KHR_texture_transform, KHR_materials_specular (specularFactor),
 KHR_materials_emissive_strength, KHR_lights_punctual; perspective cameras.
 
 Not supported: TEXCOORD_1 (textures that ask for it are sampled with TEXCOORD_0, with a
 warning), sampler filters (pbrwarp picks its own), specular colour and specular/other extension
 textures, light ``range``, orthographic cameras (skipped with a warning), skins, morph targets,
-animations, points, lines and triangle fans, and any extension listed in ``extensionsRequired``
-other than the ones above (an error, as glTF asks).
+animations, points, lines and triangle fans (skipped with a warning), and any extension listed
+in ``extensionsRequired`` other than the ones above (an error, as glTF asks).
 """
 
 from __future__ import annotations
 
 import base64
-import io
 import json
 import math
 import os
@@ -33,27 +32,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import validate
 from .camera import Camera
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError
 from .lights import DirectionalLight, PointLight, SpotLight
+from .load_limits import LoadLimits
 from .materials import Material
-from .scene import Primitive, primitive_from_trimesh, transform_primitive
+from .primitive import Primitive, transform_primitive
 from .tangents import generate_tangents
-from .textures import Texture
+from .textures import Texture, decode_rgba, open_image
 
 _GLB_MAGIC = b"glTF"
 _CHUNK_JSON = 0x4E4F534A
 _CHUNK_BIN = 0x004E4942
 _COMPONENT_TYPES = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 _INDEX_TYPES = (5121, 5123, 5125)
-_TYPE_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+_TYPE_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}  # the accessor types pbrwarp reads
+_TYPE_COMPONENTS = {**_TYPE_WIDTHS, "MAT2": 4, "MAT3": 9, "MAT4": 16}  # every type, e.g. skins' MAT4
 _WRAP_MODES = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
 _TRIANGLES, _TRIANGLE_STRIP = 4, 5
-_TRIMESH_MODES = (0, 1, 4, 5)  # primitive modes trimesh turns into geometry (and names)
 _MODES = range(7)  # POINTS .. TRIANGLE_FAN
-# An accessor without a bufferView is zeros (plus sparse edits) and costs no bytes in the file, so
-# its count is the one size a small file can make arbitrarily large: capped, not allocated blindly.
-_MAX_ZERO_FILLED_ELEMENTS = 1 << 26
 _SUPPORTED_EXTENSIONS = frozenset({
     "KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_specular", "KHR_materials_emissive_strength",
 })
@@ -70,18 +68,28 @@ class GltfContent:
     cameras: list[Camera] = field(default_factory=list)
 
 
-def load_gltf(path) -> GltfContent:
+def load_gltf(path, *, allowed_roots=None, limits: LoadLimits | None = None) -> GltfContent:
     """Read a .glb or .gltf file into world-space primitives, punctual lights and cameras.
 
+    ``allowed_roots``: folders besides the model's own that its buffer and image URIs may name
+    (default: none). Every URI other than ``data:`` must resolve, after percent-decoding and
+    following ``..`` and symbolic links, to a file inside the model's folder or one of these;
+    anything else is refused before any file is opened. ``limits``: the :class:`LoadLimits` the
+    file's images, accessors and node graph are checked against before anything is decoded or
+    allocated (default: ``LoadLimits()``). docs/loading.md describes both.
+
     Raises ``AssetNotFoundError`` when the file (or a buffer or image it references) is missing
-    and ``AssetFormatError`` naming the file and the problem when it is corrupt or inconsistent.
-    Warns (``warnings.warn``) about features it has to ignore.
+    and ``AssetFormatError`` naming the file and the problem when it is corrupt, inconsistent,
+    refers outside its folder or exceeds a limit. Warns (``warnings.warn``) about features it has
+    to ignore.
     """
     path = os.fspath(path)
+    roots = validate.allowed_roots(allowed_roots)
+    limits = LoadLimits.of(limits)
     if not os.path.isfile(path):
         raise AssetNotFoundError(f"glTF file not found: {path}")
     try:
-        content = _load(path)
+        content = _load(path, roots, limits)
     except PbrwarpError:
         raise
     except (KeyError, TypeError, ValueError, IndexError, AttributeError) as err:
@@ -93,19 +101,14 @@ def load_gltf(path) -> GltfContent:
     return content
 
 
-def _load(path: str) -> GltfContent:
-    import trimesh
-
-    doc = _Document(path)
-    # Read and check every accessor and node before trimesh sees the file, so that problems are
-    # reported in glTF's terms rather than as trimesh's internal errors.
-    data = _read_primitives(doc)
-    nodes = list(_scene_nodes(doc))
-    try:
-        scene = trimesh.load(path, force="scene")
-    except Exception as err:  # trimesh raises many types for files it cannot read
-        raise doc.error(f"trimesh could not read it: {type(err).__name__}: {err}") from None
-    content = GltfContent(primitives=_Builder(doc, data, _trimesh_geometry_names(doc)).primitives(scene))
+def _load(path: str, roots: tuple[str, ...], limits: LoadLimits) -> GltfContent:
+    doc = _Document(path, roots, limits)
+    # Every size is checked from the JSON before anything is read or allocated: accessor counts
+    # against the bytes behind them, the node graph's depth and the instances it places.
+    doc.check_accessor_sizes()
+    nodes = _scene_nodes(doc)
+    _check_instancing(doc, nodes)
+    content = GltfContent(primitives=_Builder(doc, _read_primitives(doc)).primitives(nodes))
     for node, world in nodes:
         content.lights.extend(_node_light(doc, node, world))
         content.cameras.extend(_node_camera(doc, node, world))
@@ -116,9 +119,12 @@ def _load(path: str) -> GltfContent:
 class _Document:
     """The glTF JSON plus lazily loaded buffers and images, with range-checked access."""
 
-    def __init__(self, path: str):
+    def __init__(self, path: str, roots: tuple[str, ...] = (), limits: LoadLimits | None = None):
         self.path = path
         self.base_dir = os.path.dirname(os.path.abspath(path))
+        self.roots = roots
+        self.limits = LoadLimits.of(limits)
+        self._texels = 0  # texels of the images decoded so far
         with open(path, "rb") as f:
             raw = f.read()
         if raw[:4] == _GLB_MAGIC:
@@ -187,73 +193,106 @@ class _Document:
     def buffer(self, index: int) -> bytes:
         if index not in self._buffers:
             spec = self.element("buffers", index, "a bufferView")
+            length = spec.get("byteLength")
+            if isinstance(length, bool) or not isinstance(length, int) or length < 0:
+                raise self.error(f"buffer {index} has invalid byteLength {length!r}")
             if "uri" in spec:
-                data = self._uri_bytes(spec["uri"], f"buffer {index}")
+                data = self._uri_bytes(spec["uri"], f"buffer {index}", max_bytes=length)
             elif self.glb_bin is not None:
                 data = self.glb_bin
             else:
                 raise self.error(f"buffer {index} has no uri and the file has no GLB binary chunk")
-            if len(data) < spec["byteLength"]:
-                raise self.error(f"buffer {index} has {len(data)} bytes but its byteLength is {spec['byteLength']}")
+            if len(data) < length:
+                raise self.error(f"buffer {index} has {len(data)} bytes but its byteLength is {length}")
             self._buffers[index] = data
         return self._buffers[index]
 
-    def _uri_bytes(self, uri: str, what: str) -> bytes:
-        if uri.startswith("data:"):
+    def _uri_bytes(self, uri: str, what: str, max_bytes: int | None = None) -> bytes:
+        """The bytes a buffer's or image's URI names: a data: URI's payload (no larger than the
+        JSON that holds it), or a file inside the model's folder (validate.confined_path)."""
+        if isinstance(uri, str) and uri[:5].lower() == "data:":
             header, _, payload = uri.partition(",")
             try:
-                if header.endswith(";base64"):
+                if header.lower().endswith(";base64"):
                     return base64.b64decode(payload, validate=True)
                 return urllib.parse.unquote_to_bytes(payload)
             except ValueError as err:
                 raise self.error(f"{what} has a malformed data: URI ({err})") from None
-        if urllib.parse.urlparse(uri).scheme:
-            raise self.error(f"{what} refers to {uri!r}; only relative file paths and data: URIs are supported")
-        file = os.path.join(self.base_dir, urllib.parse.unquote(uri))
-        if not os.path.isfile(file):
-            raise AssetNotFoundError(f"cannot load {self.path}: {what} file not found: {file}")
-        with open(file, "rb") as f:
-            return f.read()
+        real = validate.confined_path(uri, self.base_dir, self.roots, what, self.path)
+        return validate.read_confined(real, what, self.path, max_bytes)
 
-    def view_array(self, view_index, byte_offset, dtype, count, width, what, strided=True) -> np.ndarray:
-        """``count`` x ``width`` values of ``dtype`` from a bufferView, every byte range checked."""
+    def _view_span(self, view_index, byte_offset, element: int, count: int, what, strided=True) -> tuple:
+        """(bufferView, first byte in its buffer, stride) of ``count`` elements of ``element``
+        bytes at ``byte_offset`` in a bufferView, checked against the view's and its buffer's
+        declared lengths from the JSON alone (nothing is read)."""
         view = self.element("bufferViews", view_index, what)
-        buf = self.buffer(view["buffer"])
-        start, length = view.get("byteOffset", 0), view["byteLength"]
-        if start < 0 or length < 0 or start + length > len(buf):
-            raise self.error(f"bufferView {view_index} spans bytes {start}..{start + length} of buffer "
-                             f"{view['buffer']}, which has {len(buf)}")
-        element = dtype.itemsize * width
+        buffer = self.element("buffers", view.get("buffer"), f"bufferView {view_index}")
+        start, length = view.get("byteOffset", 0), view.get("byteLength")
         stride = (view.get("byteStride") if strided else None) or element
+        for name, value in (("byteOffset", start), ("byteLength", length), ("byteStride", stride)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise self.error(f"bufferView {view_index} has invalid {name} {value!r}")
+        if isinstance(byte_offset, bool) or not isinstance(byte_offset, int):
+            raise self.error(f"{what} has invalid byteOffset {byte_offset!r}")
+        buffer_length = buffer.get("byteLength")
+        if isinstance(buffer_length, int) and start + length > buffer_length:
+            raise self.error(f"bufferView {view_index} spans bytes {start}..{start + length} of buffer "
+                             f"{view['buffer']}, which has {buffer_length}")
         if stride < element:
             raise self.error(f"bufferView {view_index} has byteStride {stride}, "
                              f"less than the {element}-byte elements of {what}")
         end = byte_offset + stride * (count - 1) + element if count else byte_offset
         if byte_offset < 0 or end > length:
             raise self.error(f"{what} reads bytes {byte_offset}..{end} of bufferView {view_index}, which has {length}")
-        return np.ndarray((count, width), dtype, buffer=buf, offset=start + byte_offset,
-                          strides=(stride, dtype.itemsize)).copy()
+        return view, start + byte_offset, stride
+
+    def view_array(self, view_index, byte_offset, dtype, count, width, what, strided=True) -> np.ndarray:
+        """``count`` x ``width`` values of ``dtype`` from a bufferView, every byte range checked."""
+        view, first, stride = self._view_span(view_index, byte_offset, dtype.itemsize * width, count, what, strided)
+        buf = self.buffer(view["buffer"])  # at least the buffer's byteLength, which holds the view
+        return np.ndarray((count, width), dtype, buffer=buf, offset=first, strides=(stride, dtype.itemsize)).copy()
+
+    def check_accessor_sizes(self):
+        """Every accessor's count checked against the bytes behind it, from the JSON alone, before
+        anything is allocated: an accessor with a
+        bufferView must fit inside it, so it is no larger than the file; one without is zeros
+        that cost nothing in the file, and may hold at most ``limits.max_vertices`` elements."""
+        accessors = self.json.get("accessors", [])
+        if not isinstance(accessors, list):
+            raise self.error(f"'accessors' must be an array, got {type(accessors).__name__}")
+        users = _accessor_users(self.json)
+        for index, acc in enumerate(accessors):
+            what = f"accessor {index}" + (f" ({users[index]})" if index in users else "")
+            if not isinstance(acc, dict):
+                raise self.error(f"{what} is not an object")
+            ctype, kind, count = acc.get("componentType"), acc.get("type"), acc.get("count")
+            if ctype not in _COMPONENT_TYPES:
+                raise self.error(f"{what} has unknown componentType {ctype!r}")
+            if kind not in _TYPE_COMPONENTS:
+                raise self.error(f"{what} has unknown type {kind!r}")
+            if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+                raise self.error(f"{what} has invalid count {count!r}")
+            element = np.dtype(_COMPONENT_TYPES[ctype]).itemsize * _TYPE_COMPONENTS[kind]
+            if "bufferView" in acc:
+                self._view_span(acc["bufferView"], acc.get("byteOffset", 0), element, count, what)
+            elif count > self.limits.max_vertices:
+                raise self.error(f"{what} has no bufferView and count {count}: it would allocate {count} zero "
+                                 f"elements, more than the {self.limits.max_vertices} of LoadLimits.max_vertices")
 
     def accessor(self, index, what, widths=(1, 2, 3, 4)) -> np.ndarray:
         """Accessor ``index`` as a (count, width) array: float64 if float or normalized, else
-        the stored integer type. Sparse substitution is applied."""
+        the stored integer type. Sparse substitution is applied. Its count has been checked by
+        :meth:`check_accessor_sizes`."""
         acc = self.element("accessors", index, what)
         what = f"accessor {index} ({what})"
         ctype, kind, count = acc.get("componentType"), acc.get("type"), acc.get("count")
-        if ctype not in _COMPONENT_TYPES:
-            raise self.error(f"{what} has unknown componentType {ctype!r}")
         width = _TYPE_WIDTHS.get(kind)
         if width not in widths:
             expected = " or ".join(k for k, w in _TYPE_WIDTHS.items() if w in widths)
             raise self.error(f"{what} has type {kind!r}; expected {expected}")
-        if isinstance(count, bool) or not isinstance(count, int) or count < 0:
-            raise self.error(f"{what} has invalid count {count!r}")
         dtype = np.dtype(_COMPONENT_TYPES[ctype])
         if "bufferView" in acc:
             data = self.view_array(acc["bufferView"], acc.get("byteOffset", 0), dtype, count, width, what)
-        elif count > _MAX_ZERO_FILLED_ELEMENTS:
-            raise self.error(f"{what} has no bufferView and count {count}: more than the "
-                             f"{_MAX_ZERO_FILLED_ELEMENTS} zero-filled elements pbrwarp allocates")
         else:
             data = np.zeros((count, width), dtype)
         if "sparse" in acc:
@@ -278,26 +317,33 @@ class _Document:
         data[rows.astype(np.int64)] = values
 
     # -- images
-    def image(self, index: int):
-        """Decoded Pillow image ``index`` (cached: shared by every texture that uses it)."""
+    def image(self, index: int) -> np.ndarray:
+        """Image ``index`` decoded to a read-only (H, W, 4) array, uint8 for 8-bit images (cached:
+        shared by every texture that uses it). Its size is read from its header and checked
+        against LoadLimits before it is decoded."""
         if index not in self._images:
-            from PIL import Image
-
             spec = self.element("images", index, "a texture")
+            what = f"image {index}"
             if "bufferView" in spec:
-                view = self.element("bufferViews", spec["bufferView"], f"image {index}")
-                raw = self.view_array(spec["bufferView"], 0, np.dtype("u1"), view["byteLength"], 1,
-                                      f"image {index}", strided=False).tobytes()
+                view = self.element("bufferViews", spec["bufferView"], what)
+                raw = self.view_array(spec["bufferView"], 0, np.dtype("u1"), view.get("byteLength"), 1, what,
+                                      strided=False).tobytes()
             elif "uri" in spec:
-                raw = self._uri_bytes(spec["uri"], f"image {index}")
+                raw = self._uri_bytes(spec["uri"], what)
             else:
-                raise self.error(f"image {index} has neither a bufferView nor a uri")
+                raise self.error(f"{what} has neither a bufferView nor a uri")
             try:
-                img = Image.open(io.BytesIO(raw))
-                img.load()
-            except Exception as err:  # Pillow raises several types for bad image data
-                raise self.error(f"image {index} cannot be decoded: {type(err).__name__}: {err}") from None
-            self._images[index] = img
+                header = open_image(raw, what, self.limits.max_texture_side)
+                width, height = header.size
+                if self._texels + width * height > self.limits.max_texels:
+                    header.close()
+                    raise InputError(f"{what} ({width} x {height}) would bring the file's decoded texels to "
+                                     f"{self._texels + width * height}, more than the {self.limits.max_texels} "
+                                     "of LoadLimits.max_texels")
+                self._texels += width * height
+                self._images[index] = decode_rgba(header, what)
+            except InputError as err:
+                raise self.error(str(err)) from None
         return self._images[index]
 
 
@@ -316,26 +362,70 @@ class _PrimitiveData:
     material: int | None
 
 
+def _accessor_users(gltf: dict) -> dict[int, str]:
+    """What uses each accessor a mesh primitive refers to ("POSITION of mesh 0 primitive 1"), for
+    messages about accessors; the first user where several share one."""
+    users = {}
+    meshes = gltf.get("meshes", [])
+    for mi, mesh in enumerate(meshes if isinstance(meshes, list) else []):
+        prims = mesh.get("primitives", []) if isinstance(mesh, dict) else []
+        for pi, prim in enumerate(prims if isinstance(prims, list) else []):
+            if not isinstance(prim, dict):
+                continue
+            attrs = prim.get("attributes", {})
+            refs = [(name, acc) for name, acc in attrs.items()] if isinstance(attrs, dict) else []
+            for name, acc in refs + [("indices", prim.get("indices"))]:
+                if isinstance(acc, int) and not isinstance(acc, bool):
+                    users.setdefault(acc, f"{name} of mesh {mi} primitive {pi}")
+    return users
+
+
+def _primitive_mode(doc: _Document, prim, where: str) -> int:
+    mode = prim.get("mode", _TRIANGLES)
+    if isinstance(mode, bool) or not isinstance(mode, int) or mode not in _MODES:
+        raise doc.error(f"{where} has invalid mode {mode!r} (glTF modes are 0..6)")
+    return mode
+
+
+def _primitive_size(doc: _Document, prim, where: str) -> tuple[int, int]:
+    """(vertices, triangles) of a triangle list or strip primitive, from its accessors' counts
+    (checked by _Document.check_accessor_sizes) before any of its data is read."""
+    attrs = prim.get("attributes", {})
+    if "POSITION" not in attrs:
+        raise doc.error(f"{where} has no POSITION attribute")
+    vertices = doc.element("accessors", attrs["POSITION"], f"POSITION of {where}")["count"]
+    indices = vertices
+    if "indices" in prim:
+        indices = doc.element("accessors", prim["indices"], f"indices of {where}")["count"]
+    if _primitive_mode(doc, prim, where) == _TRIANGLE_STRIP:
+        return vertices, max(indices - 2, 0)
+    return vertices, indices // 3
+
+
 def _read_primitives(doc: _Document) -> dict[tuple[int, int], _PrimitiveData]:
-    """Every triangle primitive of every mesh, read and checked before trimesh sees the file."""
+    """Every triangle primitive of every mesh, read and checked."""
     out = {}
     for mi, mesh in enumerate(doc.json.get("meshes", [])):
         for pi, prim in enumerate(mesh.get("primitives", [])):
-            mode = prim.get("mode", _TRIANGLES)
-            if isinstance(mode, bool) or not isinstance(mode, int) or mode not in _MODES:
-                raise doc.error(f"mesh {mi} primitive {pi} has invalid mode {mode!r} (glTF modes are 0..6)")
-            if mode in (_TRIANGLES, _TRIANGLE_STRIP):
+            if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in (_TRIANGLES, _TRIANGLE_STRIP):
                 out[mi, pi] = _read_primitive(doc, (mi, pi), prim)
     return out
 
 
 def _read_primitive(doc: _Document, key, prim) -> _PrimitiveData:
     where = f"mesh {key[0]} primitive {key[1]}"
+    n, triangles = _primitive_size(doc, prim, where)
+    limits = doc.limits
+    if n > limits.max_vertices or triangles > limits.max_triangles:
+        raise doc.error(f"{where} has {n} vertices and {triangles} triangles, more than LoadLimits allows "
+                        f"({limits.max_vertices} vertices, {limits.max_triangles} triangles)")
     attrs = prim.get("attributes", {})
-    if "POSITION" not in attrs:
-        raise doc.error(f"{where} has no POSITION attribute")
+    for name in ("NORMAL", "TEXCOORD_0", "TANGENT", "COLOR_0"):
+        if name in attrs:
+            count = doc.element("accessors", attrs[name], f"{name} of {where}")["count"]
+            if count != n:
+                raise doc.error(f"{where} has {n} positions but {count} {name} values")
     positions = doc.accessor(attrs["POSITION"], f"POSITION of {where}", (3,)).astype(np.float64)
-    n = len(positions)
     bad = np.flatnonzero(~np.isfinite(positions).all(axis=1))
     if len(bad):
         raise doc.error(f"POSITION of {where} has NaN or Inf coordinates ({len(bad)} vertices, "
@@ -344,10 +434,7 @@ def _read_primitive(doc: _Document, key, prim) -> _PrimitiveData:
     def attribute(name, widths):
         if name not in attrs:
             return None
-        arr = doc.accessor(attrs[name], f"{name} of {where}", widths).astype(np.float64)
-        if len(arr) != n:
-            raise doc.error(f"{where} has {n} positions but {len(arr)} {name} values")
-        return arr
+        return doc.accessor(attrs[name], f"{name} of {where}", widths).astype(np.float64)
 
     material = prim.get("material")
     if material is not None:
@@ -385,96 +472,48 @@ def _primitive_faces(doc: _Document, prim, n: int, where: str) -> np.ndarray:
     return idx.reshape(-1, 3)
 
 
-def _trimesh_geometry_names(doc: _Document) -> dict[str, tuple[int, int]]:
-    """trimesh's geometry name for each (mesh, primitive), replicating its naming
-    (``unique_name(mesh name or "GLTF")`` in mesh/primitive order; trimesh/exchange/gltf
-    ``_read_buffers``). Only a guess: :meth:`_Builder._match` verifies it."""
-    from trimesh.util import unique_name
-
-    names, counts = {}, {}
-    for mi, mesh in enumerate(doc.json.get("meshes", [])):
-        for pi, prim in enumerate(mesh.get("primitives", [])):
-            name = unique_name(mesh.get("name", "GLTF"), names, counts=counts)
-            if prim.get("mode", _TRIANGLES) in _TRIMESH_MODES:
-                names[name] = (mi, pi)
-    return names
-
-
-def _same_triangles(a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether two face arrays list the same triangles in the same order and winding (each
-    row may be rotated: trimesh writes the odd triangles of a strip as (i+2, i+1, i))."""
-    if a.shape != b.shape:
-        return False
-    same = np.zeros(len(a), dtype=bool)
-    for turn in range(3):
-        same |= np.all(a == np.roll(b, turn, axis=1), axis=1)
-    return bool(np.all(same))
-
-
 class _Builder:
-    """Turns trimesh's scene-graph instances into world-space Primitives with glTF data."""
+    """Places every mesh node's triangle primitives in world space, with their glTF materials."""
 
-    def __init__(self, doc: _Document, data: dict, names: dict):
+    def __init__(self, doc: _Document, data: dict):
         self.doc = doc
         self.data = data
-        self.names = names
         self.materials = _Materials(doc)
-        self._local: dict[str, Primitive] = {}
+        self._local: dict[tuple[int, int], Primitive] = {}
 
-    def primitives(self, scene) -> list[Primitive]:
-        import trimesh
-
-        out, skipped, unplaced = [], 0, []
-        for node in scene.graph.nodes_geometry:
-            try:
-                matrix, geometry_name = scene.graph[node]
-            except ValueError:  # trimesh 5.2 leaves nodes below the first camera unconnected
-                unplaced.append(str(node))
+    def primitives(self, nodes: list) -> list[Primitive]:
+        """The Primitives the walked ``nodes`` (_scene_nodes) place, named after their node (and
+        ``/k`` for primitive k of a mesh with several)."""
+        out, skipped = [], 0
+        names = _node_names(self.doc)
+        for index, world in nodes:
+            node = self.doc.json["nodes"][index]
+            if "mesh" not in node:
                 continue
-            geom = scene.geometry[geometry_name]
-            if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
-                skipped += 1
-                continue
-            local = self._local_primitive(geometry_name, geom)
-            try:
-                world = transform_primitive(local, matrix)
-            except InputError as err:
-                raise self.doc.error(f"node {node!r}: {err}") from None
-            world.name = str(node)
-            out.append(world)
+            prims = self.doc.json["meshes"][node["mesh"]].get("primitives", [])
+            for pi in range(len(prims)):
+                data = self.data.get((node["mesh"], pi))
+                if data is None or len(data.faces) == 0:
+                    skipped += 1
+                    continue
+                try:
+                    world_prim = transform_primitive(self._local_primitive(data), world)
+                except InputError as err:
+                    raise self.doc.error(f"node {index}: {err}") from None
+                world_prim.name = names[index] if len(prims) == 1 else f"{names[index]}/{pi}"
+                out.append(world_prim)
         if skipped:
-            warnings.warn(f"{self.doc.path}: {skipped} point or line primitive(s) ignored (pbrwarp renders triangles)")
-        if unplaced:
-            warnings.warn(f"{self.doc.path}: mesh node(s) {', '.join(unplaced)} left out: trimesh's scene graph has "
-                          "no path to them (trimesh drops the first camera's node, and with it its children)")
+            warnings.warn(f"{self.doc.path}: {skipped} placed primitive(s) without triangles ignored (points, lines, "
+                          "triangle fans or empty ones: pbrwarp renders triangle lists and strips)")
         return out
 
-    def _local_primitive(self, geometry_name: str, geom) -> Primitive:
-        """The Primitive for one trimesh geometry in its mesh's space, shared by its instances."""
-        if geometry_name not in self._local:
-            data = self._match(geometry_name, geom)
-            if data is None:
-                warnings.warn(f"{self.doc.path}: geometry {geometry_name!r} matches no glTF primitive; "
-                              "using trimesh's data without tangents, samplers or texture settings")
-                self._local[geometry_name] = primitive_from_trimesh(geom, name=geometry_name)
-            else:
-                self._local[geometry_name] = self._from_data(data, geom, geometry_name)
-        return self._local[geometry_name]
+    def _local_primitive(self, data: _PrimitiveData) -> Primitive:
+        """The Primitive of one glTF primitive in its mesh's space, shared by its instances."""
+        if data.key not in self._local:
+            self._local[data.key] = self._from_data(data)
+        return self._local[data.key]
 
-    def _match(self, geometry_name: str, geom) -> _PrimitiveData | None:
-        """The glTF primitive trimesh built ``geom`` from: by name, verified by positions and
-        faces; else the first primitive whose positions and faces are equal."""
-
-        def same(data):
-            return (data.positions.shape == geom.vertices.shape and np.array_equal(data.positions, geom.vertices)
-                    and _same_triangles(data.faces, geom.faces))
-
-        key = self.names.get(geometry_name)
-        if key in self.data and same(self.data[key]):
-            return self.data[key]
-        return next((d for d in self.data.values() if same(d)), None)
-
-    def _from_data(self, data: _PrimitiveData, geom, name: str) -> Primitive:
+    def _from_data(self, data: _PrimitiveData) -> Primitive:
         if data.material is None:
             material = Material(**_DEFAULT_MATERIAL)
         else:
@@ -482,10 +521,9 @@ class _Builder:
         normals = data.normals if data.normals is not None else np.zeros_like(data.positions)
         tangents = data.tangents
         if tangents is None and material.normal_texture is not None and data.uvs is not None:
-            tangents = generate_tangents(data.positions, normals, data.uvs, geom.faces)
+            tangents = generate_tangents(data.positions, normals, data.uvs, data.faces)
         try:
-            return Primitive(data.positions, np.asarray(geom.faces), material, normals, data.uvs, tangents,
-                             data.colors, name)
+            return Primitive(data.positions, data.faces, material, normals, data.uvs, tangents, data.colors)
         except (InputError, InputTypeError) as err:
             raise self.doc.error(f"mesh {data.key[0]} primitive {data.key[1]}: {err}") from None
 
@@ -576,23 +614,101 @@ def _boolean(value, what: str) -> bool:
 
 
 # ---------------------------------------------------------------------------- nodes, lights, cameras
-def _scene_nodes(doc: _Document):
-    """(node index, world matrix) for every node of the default scene, parents first."""
+def _scene_nodes(doc: _Document) -> list[tuple[int, np.ndarray]]:
+    """(node index, world matrix) for every node of the default scene, parents first.
+
+    The walk is iterative and visits each node once: glTF node hierarchies are disjoint trees
+    (glTF 2.0, section 3.5.2: no cycles, at most one parent per node), so a node reached a second
+    time -- its own ancestor, the child of two nodes, a root that is also a child, a root listed
+    twice -- is an error, as is a node deeper than ``LoadLimits.max_node_depth``. Instancing in
+    glTF is a mesh used by several nodes, which _check_instancing bounds."""
     scenes = doc.json.get("scenes", [])
     if not scenes:
-        return
+        return []
     scene = doc.element("scenes", doc.json.get("scene", 0), "the default scene")
-    stack = [(root, np.eye(4), ()) for root in reversed(scene.get("nodes", []))]
+    max_depth = doc.limits.max_node_depth
+    parents: dict[int, int | None] = {}  # node -> parent (None for a root), for each node visited
+    out = []
+    stack = [(root, None, np.eye(4), 1) for root in reversed(_index_list(doc, scene.get("nodes", []), "scene nodes"))]
     while stack:
-        index, parent, ancestors = stack.pop()
-        node = doc.element("nodes", index, f"scene graph (under nodes {list(ancestors)})")
-        if index in ancestors:
-            raise doc.error(f"node {index} is its own ancestor (a cycle in the node hierarchy)")
+        index, parent, parent_world, depth = stack.pop()
+        where = "the scene's root nodes" if parent is None else f"the children of node {parent}"
+        node = doc.element("nodes", index, where)
+        if index in parents:
+            raise doc.error(_second_visit(index, parent, parents))
+        if depth > max_depth:
+            raise doc.error(f"node {index} is {depth} levels deep in the node hierarchy, deeper than the "
+                            f"{max_depth} of LoadLimits.max_node_depth")
+        parents[index] = parent
         if "mesh" in node:
             doc.element("meshes", node["mesh"], f"node {index}")
-        world = parent @ _local_matrix(doc, node, index)
-        yield index, world
-        stack.extend((child, world, ancestors + (index,)) for child in reversed(node.get("children", [])))
+        world = parent_world @ _local_matrix(doc, node, index)
+        out.append((index, world))
+        children = _index_list(doc, node.get("children", []), f"node {index} children")
+        stack.extend((child, index, world, depth + 1) for child in reversed(children))
+    return out
+
+
+def _node_names(doc: _Document) -> dict[int, str]:
+    """Each node's name (its index where it has none), made unique with a ``_k`` suffix."""
+    names, used = {}, set()
+    for index, node in enumerate(doc.json.get("nodes", [])):
+        base = str(node.get("name", index)) if isinstance(node, dict) else str(index)
+        name, k = base, 0
+        while name in used:
+            k += 1
+            name = f"{base}_{k}"
+        used.add(name)
+        names[index] = name
+    return names
+
+
+def _index_list(doc: _Document, value, what: str) -> list:
+    if not isinstance(value, list):
+        raise doc.error(f"{what} must be an array of node indices, got {value!r}")
+    return value
+
+
+def _second_visit(index: int, parent: int | None, parents: dict) -> str:
+    """Why the node walk reached node ``index`` again, now from ``parent``."""
+    def named(p):
+        return "the scene's root list" if p is None else f"node {p}"
+
+    ancestor = parent
+    while ancestor is not None:  # parents form a forest: this walk ends after at most depth steps
+        if ancestor == index:
+            return f"node {index} is its own ancestor (a cycle in the node hierarchy)"
+        ancestor = parents[ancestor]
+    return (f"node {index} is reached twice, from {named(parents[index])} and from {named(parent)}; glTF "
+            "node hierarchies are trees (one parent per node, glTF 2.0 section 3.5.2)")
+
+
+def _check_instancing(doc: _Document, nodes: list):
+    """The primitives, vertices and triangles the scene's mesh nodes place, counted from the
+    JSON before any mesh is read or copied, against LoadLimits."""
+    limits = doc.limits
+    sizes: dict[int, tuple[int, int, int]] = {}  # mesh -> (primitives, vertices, triangles)
+    instances = vertices = triangles = 0
+    for index, _ in nodes:
+        node = doc.json["nodes"][index]
+        if "mesh" not in node:
+            continue
+        mi = node["mesh"]
+        if mi not in sizes:
+            mesh = doc.element("meshes", mi, f"node {index}")
+            prims = mesh.get("primitives", [])
+            counts = [_primitive_size(doc, prim, f"mesh {mi} primitive {pi}") for pi, prim in enumerate(prims)
+                      if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in (_TRIANGLES, _TRIANGLE_STRIP)]
+            sizes[mi] = (len(prims), sum(c[0] for c in counts), sum(c[1] for c in counts))
+        instances += sizes[mi][0]
+        vertices += sizes[mi][1]
+        triangles += sizes[mi][2]
+        for total, field_name, noun in ((instances, "max_instances", "mesh primitives"),
+                                        (vertices, "max_vertices", "vertices"), (triangles, "max_triangles", "triangles")):
+            limit = getattr(limits, field_name)
+            if total > limit:
+                raise doc.error(f"its nodes place more than {limit} {noun} (LoadLimits.{field_name}); the limit "
+                                f"is passed at node {index}, which places mesh {mi}")
 
 
 def _local_matrix(doc: _Document, node: dict, index: int) -> np.ndarray:
@@ -605,9 +721,8 @@ def _local_matrix(doc: _Document, node: dict, index: int) -> np.ndarray:
     s = _numbers(doc, node.get("scale", (1.0, 1.0, 1.0)), 3, f"node {index} scale")
     largest = float(np.max(np.abs(q)))
     norm = largest * float(np.linalg.norm(q / largest)) if largest > 0.0 else 0.0  # no overflow in squares
-    # glTF rotations are unit quaternions; slightly off ones are normalized, but trimesh (which places
-    # the meshes) turns lengths below ~1e-8 or above ~1e154 into the identity, so those are refused
-    # rather than leaving meshes unrotated while lights and cameras turn.
+    # glTF rotations are unit quaternions: slightly off ones are normalized, lengths far from 1 are
+    # a broken file rather than a rotation to guess at.
     if not 1e-6 <= norm <= 1e6:
         raise doc.error(f"node {index} rotation {q.tolist()} has length {norm:.3g}; glTF rotations are unit quaternions")
     x, y, z, w = (float(c) for c in q / norm)

@@ -24,10 +24,10 @@ from .locality import inverse_permutation, locality_order
 from .materials import Material
 from .raster import Clusters, triangle_clusters
 from .scene import unit_rows
-from .textures import WRAP_MODES, Texture
+from .textures import UNORM8_DECODE, WRAP_MODES, Texture
 from pbrwarp.kernels.lights import LightData
 from pbrwarp.kernels.scene_data import MaterialData, SceneData
-from pbrwarp.kernels.textures import TextureData
+from pbrwarp.kernels.textures import TEXELS_FLOAT, TEXELS_SRGB8, TEXELS_UNORM8, Texels, TextureData, texel_store
 
 # Largest triangle and vertex counts the int32 indices of the kernels address.
 MAX_ELEMENTS = 2**31 - 1
@@ -54,7 +54,7 @@ class _Texels:
     key: tuple
     slots: dict  # (id(texture), srgb) -> row in the texture table
     table: wp.array
-    texels: wp.array
+    texels: Texels
 
 
 @dataclass
@@ -135,8 +135,12 @@ def _build_geometry(prims) -> _Geometry:
 
 
 def _build_texels(prims, key) -> _Texels:
-    slots, rows, chunks = {}, [], []
-    offset = 0
+    """The texture table and texels of the textured primitives' materials. 8-bit images are
+    stored once as they are, however many slots use them (sRGB-decoded or not, in the kernel);
+    others as linear float32 texels per (texture, srgb) slot."""
+    slots, rows = {}, []
+    floats, unorm8, unorm8_offsets = [], [], {}  # unorm8_offsets: id(texture) -> first texel
+    float_count = unorm8_count = 0
     for prim in prims:
         if prim.uvs is None:
             continue
@@ -144,25 +148,33 @@ def _build_texels(prims, key) -> _Texels:
             slot_key = (id(tex), srgb)
             if slot_key in slots:
                 continue
-            data = tex.texels(srgb)
-            h, w = data.shape[:2]
-            if offset + h * w > MAX_ELEMENTS:
+            h, w = tex.shape
+            row = TextureData()
+            if tex.rgba8 is not None:
+                if id(tex) not in unorm8_offsets:
+                    unorm8_offsets[id(tex)] = unorm8_count
+                    unorm8.append(tex.rgba8.reshape(-1, 4))
+                    unorm8_count += h * w
+                row.offset = unorm8_offsets[id(tex)]
+                row.texel_format = TEXELS_SRGB8 if srgb else TEXELS_UNORM8
+            else:
+                row.offset = float_count
+                row.texel_format = TEXELS_FLOAT
+                floats.append(tex.texels(srgb).reshape(-1, 4))
+                float_count += h * w
+            if max(float_count, unorm8_count) > MAX_ELEMENTS:
                 raise InputError("textures too large: more than 2^31 texels in one scene")
             m = tex.uv_matrix()
-            row = TextureData()
-            row.offset, row.width, row.height = offset, w, h
+            row.width, row.height = w, h
             row.wrap_s, row.wrap_t = WRAP_MODES[tex.wrap_s], WRAP_MODES[tex.wrap_t]
             row.uv_row0, row.uv_row1 = wp.vec3(*m[0]), wp.vec3(*m[1])
             slots[slot_key] = len(rows)
             rows.append(row)
-            chunks.append(data.reshape(-1, 4))
-            offset += h * w
-    texels = np.concatenate(chunks) if chunks else np.zeros((1, 4), np.float32)
     return _Texels(
         key=key,
         slots=slots,
         table=wp.array(rows if rows else [TextureData()], dtype=TextureData, device="cpu"),
-        texels=wp.array(texels, dtype=wp.vec4, device="cpu"),
+        texels=texel_store(floats, unorm8, UNORM8_DECODE),
     )
 
 

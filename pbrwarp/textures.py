@@ -6,7 +6,10 @@ downwards. Meshes from trimesh carry (u, 1 - v) and are converted when they ente
 
 from __future__ import annotations
 
+import io
 import math
+import threading
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,11 +57,13 @@ def _pillow_array(image) -> np.ndarray:
     return arr
 
 
-def image_to_float_rgba(image, what: str = "texture") -> np.ndarray:
-    """Any Pillow image or numpy array as a float32 (H, W, 4) array of values in [0, 1].
+def image_to_rgba(image, what: str = "texture") -> np.ndarray:
+    """Any Pillow image or numpy array as an (H, W, 4) RGBA array: uint8 for 8-bit images (kept
+    8-bit, as the renderer stores them), else float32 values in [0, 1].
 
-    Integer arrays are scaled by their type's maximum (8- and 16-bit PNGs alike); float arrays are
-    taken as they are. Greyscale is replicated to RGB; a missing alpha channel becomes 1.
+    Other integer arrays are scaled by their type's maximum (16-bit PNGs); float arrays are taken
+    as they are. Greyscale is replicated to RGB; a missing alpha channel becomes opaque. A
+    read-only (H, W, 4) uint8 or float32 array is returned as it is, anything else is copied.
     """
     try:
         from PIL import Image
@@ -75,17 +80,24 @@ def image_to_float_rgba(image, what: str = "texture") -> np.ndarray:
         raise InputError(f"{what} must have shape (H, W) or (H, W, 1..4), got {image.shape}")
     if arr.shape[0] == 0 or arr.shape[1] == 0:
         raise InputError(f"{what} is empty (shape {image.shape})")
-    if np.issubdtype(arr.dtype, np.integer):
-        scale = float(np.iinfo(arr.dtype).max)
-        arr = arr.astype(np.float32) / scale
+    if arr.shape[2] == 4 and not arr.flags.writeable and arr.dtype in (np.uint8, np.float32):
+        if arr.dtype == np.float32 and not np.all(np.isfinite(arr)):
+            raise InputError(f"{what} contains NaN or Inf texels")
+        return arr  # nobody can change it through this array: no copy needed
+    if arr.dtype == np.uint8:
+        opaque = 255
+    elif np.issubdtype(arr.dtype, np.integer):
+        arr = arr.astype(np.float32) / float(np.iinfo(arr.dtype).max)
+        opaque = 1.0
     elif np.issubdtype(arr.dtype, np.floating) or arr.dtype == np.bool_:
         arr = arr.astype(np.float32)
+        opaque = 1.0
     else:
         raise InputTypeError(f"{what} has unsupported dtype {arr.dtype}")
-    if not np.all(np.isfinite(arr)):
+    if arr.dtype == np.float32 and not np.all(np.isfinite(arr)):
         raise InputError(f"{what} contains NaN or Inf texels")
     h, w, c = arr.shape
-    out = np.ones((h, w, 4), dtype=np.float32)
+    out = np.full((h, w, 4), opaque, dtype=arr.dtype)
     if c in (1, 2):
         out[:, :, :3] = arr[:, :, :1]
         if c == 2:
@@ -93,6 +105,72 @@ def image_to_float_rgba(image, what: str = "texture") -> np.ndarray:
     else:
         out[:, :, :c] = arr
     return out
+
+
+def image_to_float_rgba(image, what: str = "texture") -> np.ndarray:
+    """Any Pillow image or numpy array as a float32 (H, W, 4) array of values in [0, 1]
+    (:func:`image_to_rgba`, 8-bit values divided by 255)."""
+    rgba = image_to_rgba(image, what)
+    return rgba.astype(np.float32) / 255.0 if rgba.dtype == np.uint8 else rgba
+
+
+def _unorm8_decode_table() -> np.ndarray:
+    """float32[512]: entry b is the 8-bit value b as a float in [0, 1], entry 256 + b the same
+    value decoded from sRGB; exactly the values image_to_float_rgba and srgb_to_linear give."""
+    linear = np.arange(256, dtype=np.uint8).astype(np.float32) / 255.0
+    table = np.concatenate([linear, srgb_to_linear(linear)]).astype(np.float32)
+    table.flags.writeable = False
+    return table
+
+
+# The kernels decode 8-bit texels with this table (kernels/textures.py, Texels.decode).
+UNORM8_DECODE = _unorm8_decode_table()
+
+# Image formats a model's textures may use: glTF's PNG and JPEG, and a few common formats Pillow
+# reads itself. Others (EPS, which Pillow renders with Ghostscript, PSD, ...) are refused.
+IMAGE_FORMATS = ("PNG", "JPEG", "WEBP", "GIF", "BMP", "TGA")
+# warnings.catch_warnings changes process-wide state: one image header at a time.
+_HEADER_LOCK = threading.Lock()
+
+
+def open_image(data: bytes, what: str, max_side: int, formats=IMAGE_FORMATS):
+    """``data`` opened as a Pillow image with only its header read (nothing decoded), refused
+    with an ``InputError`` when it is not an image of ``formats`` (None: any format Pillow
+    reads) or a side exceeds ``max_side`` texels (LoadLimits.max_texture_side). Pillow's
+    warning about images past ``PIL.Image.MAX_IMAGE_PIXELS`` is silenced, as the side limit
+    says it more precisely; Pillow refuses images of more than twice that many pixels itself."""
+    from PIL import Image
+
+    try:
+        with _HEADER_LOCK, warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            image = Image.open(io.BytesIO(data), formats=formats)
+    except Image.DecompressionBombError as err:
+        raise InputError(f"{what} is refused by Pillow's limit on decoded pixels (PIL.Image.MAX_IMAGE_PIXELS): "
+                         f"{err}") from None
+    except Exception as err:  # Pillow raises several types for bad image data
+        raise InputError(f"{what} cannot be decoded: {type(err).__name__}: {err}") from None
+    width, height = image.size
+    if max(width, height) > max_side:
+        image.close()
+        raise InputError(f"{what} is {width} x {height} texels, larger than {max_side} texels a side "
+                         "(LoadLimits.max_texture_side); it is refused before decoding")
+    return image
+
+
+def decode_rgba(image, what: str) -> np.ndarray:
+    """An opened Pillow image decoded to a read-only (H, W, 4) array (:func:`image_to_rgba`)."""
+    try:
+        image.load()
+        rgba = image_to_rgba(image, what)
+    except (InputError, InputTypeError):
+        raise
+    except Exception as err:  # Pillow raises several types for bad image data
+        raise InputError(f"{what} cannot be decoded: {type(err).__name__}: {err}") from None
+    finally:
+        image.close()
+    rgba.flags.writeable = False
+    return rgba
 
 
 def _wrap_mode(name: str):
@@ -105,7 +183,7 @@ def _wrap_mode(name: str):
 
 def _image(texture, image):
     """``image`` as given; its texels, converted (and so checked), become ``texture._rgba``."""
-    object.__setattr__(texture, "_rgba", image_to_float_rgba(image))
+    object.__setattr__(texture, "_rgba", image_to_rgba(image))
     return image
 
 
@@ -113,7 +191,8 @@ def _image(texture, image):
 class Texture(validate.Checked):
     """An image and the way a material samples it.
 
-    ``image``: numpy array (H, W[, C]) or Pillow image. ``srgb``: whether the texels are
+    ``image``: numpy array (H, W[, C]) or Pillow image; 8-bit images stay 8-bit in memory and are
+    decoded to linear values as the renderer samples them. ``srgb``: whether the texels are
     sRGB-encoded; ``None`` lets the material slot decide (colour slots sRGB, data slots linear,
     as glTF says). ``wrap_s``/``wrap_t``: "repeat", "clamp" or "mirror". ``offset``, ``rotation``
     (radians) and ``scale`` are KHR_texture_transform's, finite. Every field is checked whenever
@@ -154,8 +233,16 @@ class Texture(validate.Checked):
     def shape(self) -> tuple[int, int]:
         return self._rgba.shape[:2]
 
+    @property
+    def rgba8(self) -> np.ndarray | None:
+        """The (H, W, 4) uint8 texels of an 8-bit image as stored (sRGB-encoded or not), else None."""
+        return self._rgba if self._rgba.dtype == np.uint8 else None
+
     def texels(self, srgb: bool) -> np.ndarray:
         """Linear float32 RGBA texels; colour channels decoded from sRGB when ``srgb``."""
+        if self._rgba.dtype == np.uint8:
+            table_row = np.array([256, 256, 256, 0]) if srgb else 0  # alpha is never sRGB-encoded
+            return UNORM8_DECODE[self._rgba + table_row]
         if not srgb:
             return self._rgba
         out = self._rgba.copy()

@@ -5,6 +5,8 @@ from __future__ import annotations
 import functools
 import math
 import os
+import stat
+import urllib.parse
 
 import numpy as np
 
@@ -264,3 +266,92 @@ class Checked:
 
     def _check_together(self):
         """Check (and derive) what depends on several fields; raise InputError if they disagree."""
+
+
+# ---------------------------------------------------------------------------- files a model names
+def allowed_roots(roots, what: str = "allowed_roots") -> tuple[str, ...]:
+    """``roots`` (folders, or None) as a tuple of existing folders' real paths."""
+    if roots is None:
+        return ()
+    if isinstance(roots, (str, bytes, os.PathLike)):
+        roots = (roots,)
+    try:
+        paths = [os.fspath(r) for r in roots]
+    except TypeError:
+        raise InputTypeError(f"{what} must be a list of folders, got {roots!r}") from None
+    out = []
+    for path in paths:
+        if not os.path.isdir(path):
+            raise AssetNotFoundError(f"{what}: {path!r} is not a folder")
+        out.append(os.path.realpath(path))
+    return tuple(out)
+
+
+def confined_path(uri: str, base_dir: str, roots: tuple[str, ...], what: str, model: str,
+                  percent_encoded: bool = True) -> str:
+    """The real path of the file a model's relative ``uri`` names, refused unless it lies inside
+    the model's folder ``base_dir`` or one of ``roots`` (real paths, see :func:`allowed_roots`).
+
+    The URI is percent-decoded once (unless ``percent_encoded`` is False: an OBJ's plain path)
+    and resolved against ``base_dir`` with every ``..`` and
+    symbolic link followed, and only then compared with the folders; nothing is opened. Refused
+    outright: a scheme (``file:``, ``http:``, a drive letter), a host (``//server/...``), a NUL
+    byte or a backslash, percent-encoded or not (a separator on Windows, a name character
+    elsewhere: refused so a file means the same everywhere). ``what`` names the URI's user ("image
+    3"), ``model`` the file, in messages."""
+    def refuse(reason: str):
+        return AssetFormatError(f"cannot load {model}: {what} has URI {uri!r}, which {reason}; pbrwarp reads "
+                                "only files inside the model's folder (see docs/loading.md)")
+
+    if not isinstance(uri, str):
+        raise AssetFormatError(f"cannot load {model}: {what} has URI {uri!r}, which is not a string")
+    parsed = urllib.parse.urlsplit(uri)
+    if parsed.scheme:
+        raise refuse(f"has the scheme {parsed.scheme + ':'!r} (only relative paths and data: URIs are read)")
+    if parsed.netloc:
+        raise refuse(f"names the host {parsed.netloc!r}")
+    try:
+        path = urllib.parse.unquote(uri, errors="strict") if percent_encoded else uri
+    except UnicodeDecodeError:
+        raise refuse("is not percent-encoded UTF-8") from None
+    for char, name in (("\0", "a NUL byte"), ("\\", "a backslash")):
+        if char in uri or char in path:
+            raise refuse(f"contains {name}")
+    if not path:
+        raise refuse("is empty")
+    real = os.path.realpath(os.path.join(base_dir, path))
+    root = os.path.realpath(base_dir)
+    for folder in (root, *roots):
+        try:
+            if os.path.commonpath([real, folder]) == folder:
+                return real
+        except ValueError:  # on Windows, paths on different drives
+            continue
+    kind = "is an absolute path" if os.path.isabs(path) else "leads"
+    raise refuse(f"{kind} outside {root} (to {real})"
+                 + (" and outside every folder of allowed_roots" if roots else ""))
+
+
+def read_confined(real: str, what: str, model: str, max_bytes: int | None = None) -> bytes:
+    """The bytes (at most ``max_bytes``) of the regular file ``real`` (a :func:`confined_path`).
+    The file opened must be the one checked: its final component is not followed if it became a
+    symbolic link, a FIFO or device is refused rather than read (which could block forever), and
+    its device and inode must match the checked path's."""
+    try:
+        checked = os.stat(real)
+    except FileNotFoundError:
+        raise AssetNotFoundError(f"cannot load {model}: {what} file not found: {real}") from None
+    except OSError as err:
+        raise AssetFormatError(f"cannot load {model}: {what} file {real} cannot be read: {err.strerror}") from None
+    if not stat.S_ISREG(checked.st_mode):
+        raise AssetFormatError(f"cannot load {model}: {what} names {real}, which is not a regular file")
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0)
+    try:
+        fd = os.open(real, flags)
+    except OSError as err:
+        raise AssetFormatError(f"cannot load {model}: {what} file {real} cannot be opened: {err.strerror}") from None
+    with os.fdopen(fd, "rb") as f:
+        opened = os.fstat(f.fileno())
+        if (opened.st_dev, opened.st_ino) != (checked.st_dev, checked.st_ino):
+            raise AssetFormatError(f"cannot load {model}: {what} file {real} changed while it was being opened")
+        return f.read() if max_bytes is None else f.read(max_bytes)

@@ -356,46 +356,43 @@ def test_cameras(tmp_path):
     np.testing.assert_allclose(cam.up, (0, 0, 1), atol=1e-12)
 
 
-def test_mesh_below_camera_node_is_reported_not_fatal(tmp_path):
-    """trimesh 5.2 drops the first camera's node from its graph, orphaning its children."""
+def test_mesh_below_camera_node_is_placed(tmp_path):
+    """A mesh node under a camera node is placed by the camera node's transform."""
     b = Builder()
     mesh = b.quad()
     b.json["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}]
     b.node(mesh=mesh, name="placed")
     b.node(camera=0, translation=[0, 0, 4], children=[2])
-    b.json["nodes"].append({"mesh": mesh, "name": "orphan"})
-    with pytest.warns(UserWarning, match="orphan left out"):
-        content = load_gltf(b.glb(tmp_path / "camchild.glb"))
-    assert [p.name for p in content.primitives] == ["placed"] and len(content.cameras) == 1
+    b.json["nodes"].append({"mesh": mesh, "name": "child"})
+    content = load_gltf(b.glb(tmp_path / "camchild.glb"))
+    prims = {p.name: p for p in content.primitives}
+    assert sorted(prims) == ["child", "placed"] and len(content.cameras) == 1
+    np.testing.assert_allclose(prims["child"].positions - prims["placed"].positions, np.tile([0, 0, 4], (4, 1)))
 
 
-def test_geometry_matched_by_data_when_names_differ(tmp_path, monkeypatch):
+def test_primitives_are_named_after_their_nodes(tmp_path):
+    """A node's name (its index without one, a _k suffix where two share one); /k marks primitive
+    k of a mesh with several."""
     b = Builder()
-    b.json["materials"] = [{"normalTexture": {"index": 0}}]
-    b.json["textures"] = [{"source": b.image()}]
-    b.node(mesh=b.quad(material=0, TANGENT=b.accessor(np.tile([1.0, 0, 0, -1], (4, 1)), "VEC4")))
-    path = b.glb(tmp_path / "renamed.glb")
-    monkeypatch.setattr("pbrwarp.gltf._trimesh_geometry_names", lambda doc: {})
-    prim, = load_gltf(path).primitives
-    np.testing.assert_allclose(prim.tangents[:, 3], -1.0)  # the file's TANGENT, found by positions
+    mesh = b.quad()
+    b.json["meshes"][mesh]["primitives"].append(dict(b.json["meshes"][mesh]["primitives"][0], mode=0))
+    single = b.quad()
+    b.node(mesh=mesh, name="twice")
+    b.node(mesh=single, name="twice")
+    b.node(mesh=single)
+    b.json["meshes"][mesh]["primitives"][1]["mode"] = 4
+    names = [p.name for p in load_gltf(b.glb(tmp_path / "names.glb")).primitives]
+    assert names == ["twice/0", "twice/1", "twice_1", "2"]
 
 
-def test_unmatched_geometry_falls_back_to_trimesh_with_warning(tmp_path, monkeypatch):
+def test_points_lines_and_fans_are_skipped_with_a_warning(tmp_path):
     b = Builder()
-    b.node(mesh=b.quad())
-    path = b.glb(tmp_path / "moved.glb")
-    real_load = trimesh.load
-
-    def load_and_move(*args, **kwargs):
-        scene = real_load(*args, **kwargs)
-        for geom in scene.geometry.values():
-            geom.vertices = geom.vertices + 0.5
-        return scene
-
-    monkeypatch.setattr(trimesh, "load", load_and_move)
-    with pytest.warns(UserWarning, match="matches no glTF primitive"):
-        prim, = load_gltf(path).primitives
-    assert prim.tangents is None and prim.positions.min() == 0.5
+    mesh = b.quad()
+    prim = b.json["meshes"][mesh]["primitives"][0]
+    b.json["meshes"][mesh]["primitives"] += [dict(prim, mode=0), dict(prim, mode=1), dict(prim, mode=6)]
+    b.node(mesh=mesh)
+    with pytest.warns(UserWarning, match="3 placed primitive.s. without triangles ignored"):
+        assert len(load_gltf(b.glb(tmp_path / "modes.glb")).primitives) == 1
 
 
 def test_material_extensions_and_texture_settings(tmp_path):

@@ -107,21 +107,11 @@ def test_the_graph_sees_the_imports_it_must():
     graph = import_graph()
     assert "pbrwarp.kernels.microfacet" in graph["pbrwarp.kernels.energy"]  # from .microfacet import ...
     assert "pbrwarp.kernels.raster" in graph["pbrwarp.raster"]  # from pbrwarp.kernels import raster as rk
-    assert "pbrwarp.gltf" in graph["pbrwarp.scene"]  # inside Scene.load
+    assert "pbrwarp.gltf" in graph["pbrwarp.scene"]
     assert "pbrwarp.kernels.ibl" in graph["pbrwarp.environment"]  # from .kernels.ibl import ..., in a method
     assert "pbrwarp" in graph["pbrwarp.meshes"]  # import pbrwarp as pw
 
 
 def test_no_import_cycles():
-    graph = import_graph()
-    # the pair that another change on its way breaks: its test below is strict, so that it fails
-    # (and this exception goes) once the cycle is gone
-    known = [["pbrwarp.gltf", "pbrwarp.scene"]]
-    found = [cycle for cycle in cycles(graph) if cycle not in known]
+    found = cycles(import_graph())
     assert not found, f"import cycles: {found}"
-
-
-@pytest.mark.xfail(strict=True, reason="pbrwarp/gltf.py and pbrwarp/scene.py import each other (Scene.load imports "
-                                       "load_gltf); being fixed apart from this test")
-def test_gltf_and_scene_do_not_import_each_other():
-    assert ["pbrwarp.gltf", "pbrwarp.scene"] not in cycles(import_graph())

@@ -7,7 +7,8 @@ import warp as wp
 
 import pbrwarp as pw
 from pbrwarp.kernels.sampling import multi_jittered_sample
-from pbrwarp.kernels.textures import TextureData, sample_texture
+from pbrwarp.kernels.textures import TEXELS_FLOAT, TEXELS_SRGB8, TEXELS_UNORM8, Texels, TextureData, sample_texture, texel_store
+from pbrwarp.textures import UNORM8_DECODE
 from pbrwarp.kernels.work_queue import add_atomically, take_next_from_ranges
 
 import reference as ref
@@ -35,7 +36,7 @@ def test_multi_jittered_samples_are_stratified(m, n, seed):
 
 
 @wp.kernel(enable_backward=False)
-def sample_at(tex: TextureData, texels: wp.array(dtype=wp.vec4), uv: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.vec4)):
+def sample_at(tex: TextureData, texels: Texels, uv: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.vec4)):
     i = wp.tid()
     out[i] = sample_texture(tex, texels, uv[i])
 
@@ -60,23 +61,40 @@ def bilinear_reference(img, u, v, wrap):
     return ((img[ya, xa] * (1 - fx) + img[ya, xb] * fx) * (1 - fy) + (img[yb, xa] * (1 - fx) + img[yb, xb] * fx) * fy)
 
 
-def texture_row(w, h, wrap):
+def texture_row(w, h, wrap, texel_format=TEXELS_FLOAT):
     row = TextureData()
     row.offset, row.width, row.height, row.wrap_s, row.wrap_t = 0, w, h, wrap, wrap
+    row.texel_format = texel_format
     row.uv_row0, row.uv_row1 = wp.vec3(1, 0, 0), wp.vec3(0, 1, 0)
     return row
 
 
+def srgb_eotf(c):
+    """IEC 61966-2-1 in float64, written out here rather than taken from pbrwarp."""
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+@pytest.mark.parametrize("texel_format", ["float", "unorm8", "srgb8"])
 @pytest.mark.parametrize("wrap", [0, 1, 2])
 @pytest.mark.parametrize("size", [(1, 1), (3, 5), (7, 4)])
-def test_bilinear_sampling_and_wrap_modes(wrap, size):
+def test_bilinear_sampling_and_wrap_modes(wrap, size, texel_format):
+    """Bilinear filtering of linear values: 8-bit texels are decoded (value / 255, and sRGB's
+    EOTF for the colour of sRGB ones) before the four are interpolated."""
     rng = np.random.default_rng(5)
     w, h = size
-    img = rng.uniform(0, 1, (h, w, 4))
     uv = rng.uniform(-3, 4, (2000, 2))
+    if texel_format == "float":
+        img = rng.uniform(0, 1, (h, w, 4))
+        texels, row = texel_store([img.reshape(-1, 4).astype(np.float32)]), texture_row(w, h, wrap)
+    else:
+        stored = rng.integers(0, 256, (h, w, 4), dtype=np.uint8)
+        img = stored / 255.0
+        if texel_format == "srgb8":
+            img[..., :3] = srgb_eotf(img[..., :3])
+        texels = texel_store(unorm8=[stored.reshape(-1, 4)], decode=UNORM8_DECODE)
+        row = texture_row(w, h, wrap, TEXELS_SRGB8 if texel_format == "srgb8" else TEXELS_UNORM8)
     out = wp.zeros(len(uv), dtype=wp.vec4)
-    wp.launch(sample_at, dim=len(uv), inputs=[texture_row(w, h, wrap), wp.array(img.reshape(-1, 4).astype(np.float32), dtype=wp.vec4),
-                                              wp.array(uv.astype(np.float32), dtype=wp.vec2), out])
+    wp.launch(sample_at, dim=len(uv), inputs=[row, texels, wp.array(uv.astype(np.float32), dtype=wp.vec2), out])
     want = bilinear_reference(img, uv[:, 0].astype(np.float32).astype(np.float64), uv[:, 1].astype(np.float32).astype(np.float64), wrap)
     np.testing.assert_allclose(out.numpy(), want, atol=2e-5)
 
@@ -86,7 +104,7 @@ def test_huge_and_nan_uvs_stay_in_bounds_and_finite(wrap):
     img = np.random.default_rng(1).uniform(0, 1, (4, 4, 4))
     uv = np.array([[1e6, -1e6], [3e9, 1e12], [np.nan, 0.5], [np.inf, -np.inf], [0.5, np.nan]], np.float32)
     out = wp.zeros(len(uv), dtype=wp.vec4)
-    wp.launch(sample_at, dim=len(uv), inputs=[texture_row(4, 4, wrap), wp.array(img.reshape(-1, 4).astype(np.float32), dtype=wp.vec4),
+    wp.launch(sample_at, dim=len(uv), inputs=[texture_row(4, 4, wrap), texel_store([img.reshape(-1, 4).astype(np.float32)]),
                                               wp.array(uv, dtype=wp.vec2), out])
     got = out.numpy()
     assert np.all(np.isfinite(got))

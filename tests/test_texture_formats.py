@@ -256,6 +256,50 @@ def test_uvs_spanning_minus_to_plus_a_million_sample_the_uniform_colour():
     np.testing.assert_allclose(frame.rgb, np.broadcast_to(expected, frame.rgb.shape), rtol=1e-4, atol=1e-7)
 
 
+# ---------------------------------------------------------------------------- texels in memory
+def uploaded_texels(material):
+    from pbrwarp.gpu_scene import upload
+
+    scene = pw.Scene()
+    scene.add_mesh(textured_quad(material))
+    return upload(scene).data
+
+
+def test_8bit_images_stay_8bit_once_however_many_slots_use_them():
+    """Stored as uploaded: 4 bytes a texel, one copy for an sRGB slot and a linear slot alike
+    (the kernel decodes each as its slot asks)."""
+    from pbrwarp.kernels.textures import TEXELS_SRGB8, TEXELS_UNORM8
+
+    texture = pw.Texture(RNG.integers(0, 256, (64, 32, 3), dtype=np.uint8))
+    assert texture.rgba8.dtype == np.uint8 and texture.rgba8.shape == (64, 32, 4)
+    data = uploaded_texels(white_lambert(base_color_texture=texture, occlusion_texture=texture))
+    rows = data.textures.numpy()
+    assert sorted(rows["texel_format"].tolist()) == [TEXELS_UNORM8, TEXELS_SRGB8]
+    assert rows["offset"].tolist() == [0, 0]
+    assert data.texels.unorm8.shape == (64 * 32,) and data.texels.floats.shape == (1,)  # one unused float texel
+    np.testing.assert_array_equal(data.texels.unorm8.numpy(), texture.rgba8.reshape(-1, 4))
+
+
+def test_16bit_and_float_images_keep_linear_float_texels():
+    for image in (GREY16, np.full((3, 5, 3), 0.25, np.float32)):
+        texture = pw.Texture(image)
+        assert texture.rgba8 is None
+        data = uploaded_texels(white_lambert(base_color_texture=texture))
+        h, w = texture.shape
+        assert data.texels.floats.shape == (h * w,) and data.texels.unorm8.shape == (1,)
+        np.testing.assert_array_equal(data.texels.floats.numpy(), texture.texels(True).reshape(-1, 4))
+
+
+def test_read_only_rgba_images_are_kept_without_a_copy():
+    """What the glTF loader hands over: its decoded images, made read-only."""
+    for dtype in (np.uint8, np.float32):
+        image = np.zeros((4, 4, 4), dtype)
+        image.flags.writeable = False
+        assert pw.Texture(image).image is image and np.shares_memory(pw.Texture(image)._rgba, image)
+        writable = np.zeros((4, 4, 4), dtype)
+        assert not np.shares_memory(pw.Texture(writable)._rgba, writable)
+
+
 # ---------------------------------------------------------------------------- colour vs data textures
 def test_colour_slots_decode_srgb_and_data_slots_do_not():
     image = np.full((2, 2, 3), 128, np.uint8)
