@@ -244,8 +244,14 @@ LIMITED_LOAD = textwrap.dedent("""
     import json, resource, sys, time
     limit = int(sys.argv[2]) << 20
     resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
+    def peak_mb():
+        # this process's own peak (VmHWM); ru_maxrss would start at the parent's, kept across exec
+        with open("/proc/self/status") as status:
+            return next(int(line.split()[1]) for line in status if line.startswith("VmHWM:")) / 1024
+
     import pbrwarp as pw
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    before = peak_mb()
     start = time.perf_counter()
     try:
         pw.Scene.load(sys.argv[1])
@@ -254,7 +260,7 @@ LIMITED_LOAD = textwrap.dedent("""
         outcome = {"error": type(err).__name__, "message": str(err),
                    "pbrwarp": isinstance(err, pw.PbrwarpError)}
     outcome["seconds"] = time.perf_counter() - start
-    outcome["rss_mb"] = [before / 1024, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024]
+    outcome["rss_mb"] = [before, peak_mb()]
     print(json.dumps(outcome))
 """)
 
