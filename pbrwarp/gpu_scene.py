@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from . import validate
 from .errors import InputError
 from .lights import SPOT
 from .locality import inverse_permutation, locality_order
@@ -230,10 +231,12 @@ def upload(scene) -> GpuScene:
     if not prims:
         raise InputError("the scene has no meshes: add one with scene.add_mesh(...) or load a file")
     cache = scene.cache
-    # primitives and textures compare by identity, and the keys keep them alive
-    geo_key = tuple(prims)
+    # primitives and textures compare by identity and revision (a field set anew rebuilds what
+    # depends on it), and the keys keep them alive
+    geo_key = tuple(validate.revision(p) for p in prims)
     geometry = cache.get("geometry", geo_key, lambda: _build_geometry(prims))
-    tex_key = tuple((tex, srgb) for p in prims if p.uvs is not None for _, tex, srgb in p.material.textures())
+    tex_key = tuple((validate.revision(tex), srgb) for p in prims if p.uvs is not None
+                    for _, tex, srgb in p.material.textures())
     texels = cache.get("texels", tex_key, lambda: _build_texels(prims, tex_key))
     for prim in prims:
         if prim.uvs is None and any(True for _ in prim.material.textures()):
@@ -265,7 +268,7 @@ def _content_key(value):
     """A hashable stand-in for a material's or light's current contents (its fields, nested
     sequences and arrays by value, textures by identity, as the texel cache keys them)."""
     if isinstance(value, Texture):
-        return id(value)
+        return id(value), value._revision
     if hasattr(value, "__dataclass_fields__"):  # a Material, a light
         return tuple(_content_key(v) for v in vars(value).values())
     if isinstance(value, (tuple, list)):

@@ -9,10 +9,11 @@ builds the slot anew, which then replaces the old value):
 ====================================  ================================  =======================================
 slot                                  value (built by)                  key
 ====================================  ================================  =======================================
-"geometry"                            merged vertex arrays, BVH and     the primitives, by identity (their
-                                      clusters (gpu_scene.upload)       arrays are fixed once in a scene)
-"texels"                              texture table and texels          the textures, by identity, and sRGB
-                                      (gpu_scene.upload)                flags of the primitives with UVs
+"geometry"                            merged vertex arrays, BVH and     the primitives, by identity and
+                                      clusters (gpu_scene.upload)       revision (validate.revision)
+"texels"                              texture table and texels          the textures, by identity and
+                                      (gpu_scene.upload)                revision, and sRGB flags of the
+                                                                        primitives with UVs
 "rows"                                the GpuScene: SceneData with      geometry, texels, the contents of
                                       material and light rows           every material and light
                                       (gpu_scene.upload)
@@ -26,14 +27,16 @@ slot                                  value (built by)                  key
 "shadow maps"                         the lights' depth maps            the geometry, the lights' placement,
                                       (shadow_maps.build)               the ShadowMap settings, the alpha
                                                                         cut-outs
-(fact, primitive), fact one of        a primitive's bounds, whether it  none: a primitive's arrays are fixed
-"bounds", "closed volume", "convex",  is a closed volume, or convex,    once in a scene
+(fact, primitive), fact one of        a primitive's bounds, whether it  the primitive's revision
+"bounds", "closed volume", "convex",  is a closed volume, or convex,
 "hull points"                         its convex hull's vertices
                                       (gpu_scene, features, camera)
 ====================================  ================================  =======================================
 
-What no key holds (the camera, light colours and intensities, material factors) is read anew by
-every render. A new geometry drops, at once, every slot derived from the old one and the facts of
+A primitive's or texture's revision counts the assignments to its fields (``prim.positions =
+...``, ``texture.image = ...``), so that setting one rebuilds what was derived from it; an array
+changed in place is not seen (replace it instead). What no key holds (the camera, light colours
+and intensities, material factors) is read anew by every render. A new geometry drops, at once, every slot derived from the old one and the facts of
 primitives no longer in the scene (their keys would no longer match; dropping frees the memory).
 The light buffers are built without their interiors' marks; the first render that finds them
 built (a second frame) stores a marked copy in their place (``Cache.improve``).
@@ -219,14 +222,14 @@ class SceneCache(Cache):
     def _stored(self, slot, key):
         if slot != "geometry":
             return
-        primitives = set(key)
+        primitives = {primitive for primitive, _ in key}  # key: (primitive, revision) pairs
         for stale in [s for s in self._entries if _family(s) in GEOMETRY_DERIVED
                       or (_family(s) in PRIMITIVE_FACTS and s[1] not in primitives)]:
             del self._entries[stale]
 
     def fact(self, name: str, primitive, compute):
         """A fact about ``primitive`` (one of PRIMITIVE_FACTS), ``compute(primitive)`` the first time."""
-        return self.get((name, primitive), None, lambda: compute(primitive))
+        return self.get((name, primitive), primitive._revision, lambda: compute(primitive))
 
 
 PROCESS_WIDE = Cache()

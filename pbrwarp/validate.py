@@ -242,6 +242,9 @@ class Checked:
     rule is undone before the error propagates."""
 
     _checks: dict = {}
+    # Checked assignments since construction: caches that key an object by identity (a
+    # Primitive's geometry, a Texture's texels) key it by (object, revision) too.
+    _revision = 0
 
     def __post_init__(self):
         # the dataclass __init__ has stored every field unchecked (see __setattr__)
@@ -263,9 +266,16 @@ class Checked:
         except BaseException:
             object.__setattr__(self, name, old)
             raise
+        object.__setattr__(self, "_revision", self._revision + 1)
 
     def _check_together(self):
         """Check (and derive) what depends on several fields; raise InputError if they disagree."""
+
+
+def revision(obj) -> tuple:
+    """(``obj``, how many checked assignments it has had): a cache key for an object compared by
+    identity that no longer matches once one of its fields was set anew (:class:`Checked`)."""
+    return obj, obj._revision
 
 
 # ---------------------------------------------------------------------------- files a model names

@@ -95,3 +95,25 @@ def test_dfg_table_is_cached_on_disk_and_read_back_exactly():
     integrated = wp.zeros((dfg.DFG_TABLE_SIZE,) * 2, dtype=wp.vec2, device="cpu")
     wp.launch(dfg.integrate_dfg, dim=integrated.shape, device="cpu", inputs=[dfg.DFG_SAMPLES, integrated])
     np.testing.assert_array_equal(dfg.dfg_table.__wrapped__().numpy(), integrated.numpy())
+
+
+def test_assigning_a_primitives_or_textures_field_rebuilds_what_depends_on_it():
+    """A field set anew (not an array changed in place) is seen by the next render: the geometry,
+    its facts and the texels are keyed by the objects' revisions, not only their identity."""
+    import trimesh
+
+    scene = pw.Scene()
+    texture = pw.Texture(np.full((2, 2, 3), 255, dtype=np.uint8))
+    box = trimesh.creation.box()
+    prim = scene.add_mesh(pw.Primitive(box.vertices, box.faces, pw.Material(base_color_texture=texture, specular=0.0),
+                                       uvs=np.zeros((len(box.vertices), 2))))
+    scene.add_light(pw.DirectionalLight(direction=(0, 0, -1), intensity=3.0))
+    camera = pw.Camera.look_at((0, 0, 5), (0, 0, 0), fov_y=30.0)
+    first = pw.render(scene, camera, width=32, height=32, progress=False)
+    prim.positions = prim.positions * 0.5  # the box shrinks: it covers fewer pixels
+    second = pw.render(scene, camera, width=32, height=32, progress=False)
+    assert second.alpha.sum() < 0.5 * first.alpha.sum()
+    texture.image = np.zeros((2, 2, 3), dtype=np.uint8)  # black Lambert (no specular lobe): dark
+    third = pw.render(scene, camera, width=32, height=32, progress=False)
+    assert third.rgb[third.alpha > 0].max() == 0.0 < second.rgb[second.alpha > 0].max()
+    assert np.array_equal(pw.Camera.frame(scene).eye, pw.Camera.frame(scene).eye)

@@ -161,18 +161,21 @@ def test_an_improvement_is_made_once_while_the_others_keep_the_value_they_had():
 
 
 def test_a_new_geometry_drops_what_was_derived_from_the_old():
+    class Primitive:  # a stand-in: identity and revision are all the cache reads of it
+        _revision = 0
+
     cache = SceneCache()
-    kept, dropped = object(), object()
-    cache.get("geometry", (kept, dropped), lambda: "old geometry")
+    kept, dropped = Primitive(), Primitive()
+    cache.get("geometry", ((kept, 0), (dropped, 0)), lambda: "old geometry")
     cache.get("texels", (), lambda: "texels")
     for slot in ("rows", ("face flags", "culling", (True,)), "longest edges", "light buffers", "shadow maps"):
         cache.get(slot, "old geometry", lambda: "derived")
     for primitive in (kept, dropped):
         cache.fact("bounds", primitive, lambda p: "bounds")
-    cache.get("geometry", (kept,), lambda: "new geometry")
+    cache.get("geometry", ((kept, 0),), lambda: "new geometry")
     assert cache.lookup("texels", ()) == "texels"
-    assert cache.lookup(("bounds", kept), None) == "bounds"
-    assert cache.lookup(("bounds", dropped), None) is None
+    assert cache.lookup(("bounds", kept), 0) == "bounds"
+    assert cache.lookup(("bounds", dropped), 0) is None
     assert all(cache.lookup(slot, "old geometry") is None
                for slot in ("rows", ("face flags", "culling", (True,)), "longest edges", "light buffers", "shadow maps"))
 
