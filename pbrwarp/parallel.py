@@ -15,9 +15,9 @@ One pool serves the whole process, its threads started as calls need them, up to
 
 from __future__ import annotations
 
-import collections
 import functools
 import os
+import queue
 import threading
 from concurrent.futures import FIRST_EXCEPTION, Future, wait
 
@@ -57,11 +57,14 @@ class _Pool:
     """Threads running queued (future, task) pairs, at most max_threads(): started when a call
     needs more idle ones than there are, kept for later calls. A call's tasks are queued only
     once as many threads are idle as there are tasks queued, so that they all run at once
-    (run_together's launches wait for each other)."""
+    (run_together's launches wait for each other). Each task queued wakes one idle thread, not
+    all of them: on a machine with few cores, threads woken for nothing take the cores from the
+    launches that are waiting for each other."""
 
     def __init__(self):
-        self._changed = threading.Condition()
-        self._queue = collections.deque()
+        self._changed = threading.Condition()  # callers waiting for idle threads wait on it
+        self._tasks = queue.SimpleQueue()  # each put wakes one thread waiting in get
+        self._queued = 0  # tasks put and not yet taken
         self._threads = 0
         self._idle = 0  # threads not running a task (waiting for one, or about to)
 
@@ -74,12 +77,13 @@ class _Pool:
         once (waiting for threads of other calls while the pool is full). A ResourceError, nothing
         queued, if the system refuses a thread."""
         with self._changed:
-            while self._idle - len(self._queue) + max_threads() - self._threads < len(items):
+            while self._idle - self._queued + max_threads() - self._threads < len(items):
                 self._changed.wait()
-            while self._idle - len(self._queue) < len(items):
+            while self._idle - self._queued < len(items):
                 self._start_thread()
-            self._queue.extend(items)  # one step: no interrupt leaves part of a call queued
-            self._changed.notify_all()
+            self._queued += len(items)
+            for item in items:  # no interrupt is taken between these puts: nothing in them runs Python
+                self._tasks.put(item)
 
     def _start_thread(self):
         thread = threading.Thread(target=self._serve, name=f"pbrwarp-{self._threads}", daemon=True)
@@ -94,10 +98,9 @@ class _Pool:
                                 "threads= or free some") from error
 
     def drop(self, futures: list[Future]):
-        """Cancels those of ``futures`` whose task no thread has taken (queued, or never queued)."""
+        """Cancels those of ``futures`` whose task no thread has taken (queued, or never queued):
+        the thread that takes a cancelled one skips it."""
         with self._changed:
-            ours = set(futures)
-            self._queue = collections.deque(item for item in self._queue if item[0] not in ours)
             for future in futures:
                 # a task is taken under this lock, and its future marked running at once
                 if not future.done() and future.cancel():
@@ -105,13 +108,15 @@ class _Pool:
 
     def _serve(self):
         while True:
+            future, task = self._tasks.get()
             with self._changed:
-                while not self._queue:
-                    self._changed.wait()
+                self._queued -= 1
                 self._idle -= 1
-                future, task = self._queue.popleft()
-                future.set_running_or_notify_cancel()
-            self._run(future, task)
+                runs = future.set_running_or_notify_cancel()  # False: dropped (drop)
+            if runs:
+                self._run(future, task)
+            else:
+                self._now_idle()
 
     def _run(self, future: Future, task):
         """task() for ``future``; the thread counts as idle again before the caller learns the

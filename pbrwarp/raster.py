@@ -473,6 +473,10 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
             _replay_launch(scratch, ("pipeline", k), rk.visibility_pipeline,
                            [k, first_stage, int(stop_after_binning), work, mesh, cam, int(bool(orthographic)),
                             target, binned, culling])
+            if k == 0:
+                # launch 0 returns once the others are done and wait to be released: release them
+                # from here rather than after the caller has woken up to learn that it returned
+                released_view[0] = epoch
 
         def abort():
             # a launch failed or the caller was interrupted: the others stop waiting at their next
