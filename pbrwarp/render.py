@@ -31,10 +31,10 @@ from pbrwarp.kernels.ibl import EnvironmentData
 from pbrwarp.kernels.render import ROWS_TAKEN, STOP, WORK_SLOTS, render_kernel
 
 # One launch per thread, each taking ROWS_PER_TAKE rows at a time from one shared counter until
-# none are left, so that the threads finish together: with four fixed bands of rows per thread,
-# one thread sat idle for ~7 ms of a 60 ms 1024² frame whose rows cost unevenly (development
-# trial, bench/frames.py's icosphere). Progress is read off the counter; an interrupt sets the
-# stop flag beside it, which the launches check at every pixel (kernels/render.py).
+# none are left, so that the threads finish together even where rows cost unevenly (fixed bands
+# of rows per thread leave the threads with the cheap bands idle). Progress is read off the
+# counter; an interrupt sets the stop flag beside it, which the launches check at every pixel
+# (kernels/render.py).
 ROWS_PER_TAKE = 4
 # Seconds between progress bar updates.
 PROGRESS_INTERVAL = 0.1
