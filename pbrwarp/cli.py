@@ -236,7 +236,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="output image; the extension picks the format (.png, .jpg, ... tone mapped; "
                             ".npy: linear float32 RGBA)")
         p.add_argument("--size", type=parse_size, default=default_size, metavar="WxH",
-                       help=f"image size in pixels, each side 1 to {MAX_SIDE} (default {default_size[0]}x{default_size[1]})")
+                       help=f"image size in pixels, each side 1 to {MAX_SIDE} "
+                            f"(default {default_size[0]}x{default_size[1]})")
         p.add_argument("--spp", type=_positive_int("samples per pixel"), default=default_spp, metavar="N",
                        help=f"samples per pixel (default {default_spp})")
         p.add_argument("--tonemap", choices=("none", "reinhard", "aces"), default="aces",
