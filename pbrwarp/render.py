@@ -174,12 +174,12 @@ def render(
       and ray casting where the buffer would exceed 1 GiB).
 
     Raises InputTypeError for a scene, camera or option of the wrong type, InputError for a value
-    out of range or a frame past a limit (before anything is allocated), ResourceError when the
-    system refuses a thread. A KeyboardInterrupt (Ctrl-C) stops every launch of the render at
-    once and propagates; the next render in the process is unaffected. :func:`explain` says what
-    is simulated; the scene's derived data (uploaded geometry, light buffers, ...) is kept in
-    ``scene.cache`` for the next render, and a ``Scene`` may be rendered from several threads at
-    once.
+    out of range, a scene without meshes or a frame past a limit (before anything is allocated),
+    ResourceError when the system refuses a thread. A KeyboardInterrupt (Ctrl-C) stops every
+    launch of the render at once and propagates; the next render in the process is unaffected.
+    :func:`explain` says what is simulated; the scene's derived data (uploaded geometry, light
+    buffers, ...) is kept in ``scene.cache`` for the next render, and a ``Scene`` may be rendered
+    from several threads at once.
     """
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
