@@ -3,8 +3,8 @@ against a reference for error and timed, side by side.
 
     python bench/accuracy.py [--repeats 5] [--size 256x192]
 
-- BRDF rows swap one term of the default (the seeds' model) for another rung, or use a preset.
-  Their error is against the reference BRDF (pbrwarp.brdf.PRESETS["reference"]) rendered with
+- BRDF rows swap one term of the default (the real-time model of Karis 2013) for another rung,
+  or use a preset. Their error is against the reference BRDF (pbrwarp.brdf.PRESETS["reference"]) rendered with
   the same 4 stratified samples per pixel, so it is the BRDF's error alone.
 - Sampling rows render the default BRDF at 1..64 spp against the same BRDF at 256 spp.
 - The shadow row turns shadow rays off, against shadow rays on.

@@ -35,9 +35,8 @@ def all_done(sync: wp.array(dtype=wp.int32), slot: int, amount: int, total: int,
     library's sched_yield; 0: never), lest a launch waiting for another that is not running (more
     threads than cores, or cores taken by other processes) hold the core that one needs. Spinning
     rather than returning to Python between stages: a Python barrier's wake-ups, and the GIL
-    passed back and forth for each stage's launch, cost ~1.5 ms of a call on two threads
-    (development measurement, nothing to draw at 512²: 2.6-3.6 ms on two threads against
-    1.1-2.5 on one)."""
+    passed back and forth for each stage's launch, would cost more than a small frame's drawing
+    and make two threads slower than one."""
     ...
 
 
@@ -58,9 +57,9 @@ def all_done(sync: wp.array(dtype=wp.int32), slot: int, amount: int, total: int,
 def wait_for_release(released: wp.array(dtype=wp.int64), epoch: wp.int64, sync: wp.array(dtype=wp.int32),
                      aborted: int, spins_before_yield: int, os_yield: wp.uint64):
     """Spins as all_done does until released[0] >= epoch, which the caller's Python sets once
-    launch 0 has returned to it: a pool thread's launch returning with launch 0's took the GIL
-    first about half the time, and the caller then waited for the pool thread's way back to its
-    queue (2 threads, 1024²: ~0.1 ms a call; development). released[0] only grows, so that a
+    launch 0 has returned to it: a pool thread's launch returning with launch 0's may take the
+    GIL first, and the caller would then wait for the pool thread's way back to its queue.
+    released[0] only grows, so that a
     launch that sees it late, after the caller's next call began, still stops."""
     ...
 

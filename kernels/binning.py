@@ -18,9 +18,8 @@ wp.set_module_options({"enable_backward": False})
 # Screen tiles are TILE_SIZE x TILE_SIZE pixels; each is rasterized by one thread, alone.
 TILE_SIZE = wp.constant(32)
 # Triangles whose screen rectangle spans at most this many pixels are drawn as soon as they are
-# projected, with atomic minima, instead of being binned into tiles and read again (64 rather
-# than 16: one thread's CPU time rasterizing bench/frames.py's scenes fell 10-15% in paired
-# development runs, the 512² meshes' did not change).
+# projected, with atomic minima, instead of being binned into tiles and read again: for a
+# triangle this small, binning and reading it back cost more than its few contended writes.
 SMALL_TRIANGLE_PIXELS = wp.constant(64)
 
 

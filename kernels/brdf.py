@@ -4,8 +4,8 @@ Fresnel and diffuse terms here, the microfacet distributions and masking terms i
 kernels/microfacet.py; the albedo tables of energy compensation and coupling come from
 kernels/energy.py.
 
-The default (the seeds' model) is Lambert, GGX, Smith/Schlick-GGX and Schlick Fresnel; the
-other rungs are cheaper or more exact alternatives chosen at compile time (pbrwarp.BRDF)."""
+The default, the real-time model of Karis 2013, is Lambert, GGX, Smith/Schlick-GGX and Schlick
+Fresnel; the other rungs are cheaper or more exact alternatives chosen at compile time (pbrwarp.BRDF)."""
 
 import functools
 
@@ -18,13 +18,13 @@ from .robust import MIN_COSINE, safe_normalize
 
 wp.set_module_options({"enable_backward": False})
 
-# Dielectric reflectance at normal incidence for specular = 1 (IOR 1.5; seeds, glTF).
+# Dielectric reflectance at normal incidence for specular = 1 (IOR 1.5; glTF).
 DIELECTRIC_F0 = wp.constant(0.04)
 
 
 @wp.func
 def Fd_Lambert() -> float:
-    """Lambertian diffuse, 1/pi (Lambert 1760; seeds 000-004)."""
+    """Lambertian diffuse, 1/pi (Lambert 1760)."""
     return 1.0 / PI
 
 
@@ -48,7 +48,7 @@ def F_None(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
 @wp.func
 def F_SphericalGaussian(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
     """Schlick's Fresnel with (1 - v.h)^5 replaced by the spherical-Gaussian fit
-    2^((-5.55473 v.h - 6.98316) v.h) (Lagarde 2012; Karis 2013; seeds 002/004)."""
+    2^((-5.55473 v.h - 6.98316) v.h) (Lagarde 2012; Karis 2013)."""
     x = wp.clamp(v_dot_h, 0.0, 1.0)
     return f0 + (f90 - f0) * wp.pow(2.0, (-5.55473 * x - 6.98316) * x)
 
@@ -107,20 +107,20 @@ def F_Conductor(eta: wp.vec3, kappa: wp.vec3, v_dot_h: float) -> wp.vec3:
 
 @wp.func
 def Fs_Phong(alpha_p: float, r_dot_v: float) -> float:
-    """Normalized Phong BRDF lobe, (a_p + 2) / (2 pi) (r.v)^a_p (seed 002; Lafortune & Willems 1994)."""
+    """Normalized Phong BRDF lobe, (a_p + 2) / (2 pi) (r.v)^a_p (Lafortune & Willems 1994)."""
     return (alpha_p + 2.0) / (2.0 * PI) * wp.pow(wp.clamp(r_dot_v, 0.0, 1.0), alpha_p)
 
 
 @wp.func
 def Fs_BlinnPhong(alpha_p: float, n_dot_h: float) -> float:
     """Normalized Blinn-Phong BRDF lobe with Hoffman's cheap normalization (a_p + 8) / (8 pi)
-    (n.h)^a_p (seed 002, citing Akenine-Möller et al. 2008)."""
+    (n.h)^a_p (Akenine-Möller, Haines & Hoffman 2008)."""
     return (alpha_p + 8.0) / (8.0 * PI) * wp.pow(wp.clamp(n_dot_h, 0.0, 1.0), alpha_p)
 
 
 @wp.func
 def F_Schlick(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
-    """Schlick's Fresnel approximation (Schlick 1994; seeds 001/002)."""
+    """Schlick's Fresnel approximation (Schlick 1994)."""
     x = wp.clamp(1.0 - v_dot_h, 0.0, 1.0)
     x2 = x * x
     return f0 + (f90 - f0) * (x2 * x2 * x)
@@ -128,14 +128,14 @@ def F_Schlick(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
 
 @wp.func
 def specular_f0(base_color: wp.vec3, metallic: float, specular: float) -> wp.vec3:
-    """f0 = mix(0.04 specular, base_color, metallic) (seeds; KHR_materials_specular)."""
+    """f0 = mix(0.04 specular, base_color, metallic) (glTF's metallic-roughness model; KHR_materials_specular)."""
     return wp.lerp(wp.vec3(DIELECTRIC_F0 * specular), base_color, metallic)
 
 
 @wp.func
 def specular_f90(metallic: float, specular: float) -> wp.vec3:
     """f90 = mix(specular, 1, metallic): specular = 0 removes the dielectric lobe entirely
-    (KHR_materials_specular); for specular = 1 this is the seeds' f90 = 1."""
+    (KHR_materials_specular); for specular = 1 this is Schlick's f90 = 1."""
     return wp.vec3(specular + (1.0 - specular) * metallic)
 
 
@@ -143,7 +143,7 @@ DIFFUSE_MODELS = ("lambert", "burley")
 FRESNEL_MODELS = ("none", "schlick", "spherical_gaussian", "exact")
 ENERGY_MODELS = ("single", "multiscatter")
 # "microfacet" is Cook-Torrance with the rungs above; the others are the legacy, non-PBR
-# baselines the seeds contrast it with, Lambert plus a normalized (Blinn-)Phong lobe.
+# baselines it is usually contrasted with, Lambert plus a normalized (Blinn-)Phong lobe.
 MODELS = ("microfacet", "phong", "blinn_phong")
 _FRESNEL = {"none": F_None, "schlick": F_Schlick, "spherical_gaussian": F_SphericalGaussian, "exact": F_Exact}
 
@@ -210,13 +210,13 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
              coupling: str = "albedo", model: str = "microfacet"):
     """brdf(n, v, l, base_color, metallic, roughness, specular, eta=0, kappa=0) -> f(l, v):
     k (1 - metallic) c f_d + D F V, V = G / (4 n.l n.v) in its visibility form; n.v is clamped to
-    MIN_COSINE, n.l <= 0 gives 0. The names pick each term's rung; the defaults are the seeds'
+    MIN_COSINE, n.l <= 0 gives 0. The names pick each term's rung; the defaults are Karis 2013's
     terms (f_d Lambert, GGX, Smith/Schlick-GGX, Schlick, single scattering).
 
     ``coupling`` is k, the share of light left to the diffuse lobe: "albedo" (default),
     (1 - E(v))(1 - E(l)) / (1 - E_avg) with E the specular lobe's directional albedo (Kelemen &
     Szirmay-Kalos 2001; Kulla & Conty 2017), which is reciprocal and conserves energy exactly for
-    Lambert (white-furnace albedo E(v) + (1 - E(v)) = 1); "fresnel", the seeds' 1 - F(v.h), which
+    Lambert (white-furnace albedo E(v) + (1 - E(v)) = 1); "fresnel", the common 1 - F(v.h), which
     gives smooth white dielectrics seen at grazing angles up to ~6% more light than they receive;
     "none", diffuse and specular simply added (Filament). ``energy="multiscatter"`` scales the
     specular lobe by 1 + f0 (1/E1 - 1) (Fdez-Agüera 2019, as Filament). ``fresnel="exact"``
@@ -224,7 +224,7 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
     gives none) the exact conductor Fresnel, F = mix(F_dielectric, F_conductor, metallic).
 
     ``model="phong"`` or ``"blinn_phong"`` replace all of this by the legacy baselines:
-    (1 - c_spec) c_diff / pi plus c_spec times a normalized Phong or Blinn-Phong lobe (seed 002),
+    (1 - c_spec) c_diff / pi plus c_spec times a normalized Phong or Blinn-Phong lobe (Lagarde 2011),
     c_spec = f0, c_diff = (1 - metallic) base_color; the Phong exponent is a quarter of the
     Blinn-Phong one, which gives highlights of about the same size (Akenine-Möller et al. 2008).
 
@@ -250,8 +250,7 @@ def albedo_coupled_brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: st
     metallic, roughness, specular, eta, kappa, scale) the BRDF given it: as it depends on the
     material alone, not on the directions, a caller may compute it once per material (where no
     texture or vertex colour varies its inputs) rather than for every light and pixel, which
-    saves a table lookup and three divisions per evaluation (1.5-2% of a shaded 1024² frame of
-    the icosphere on a floor with one point light; development A/B, one thread)."""
+    saves a table lookup and three divisions per evaluation."""
     _check_rungs(diffuse, distribution, geometry, fresnel, energy, coupling, model)
     if model != "microfacet" or coupling != "albedo" or not (diffuse_lobe and specular_lobe):
         return None
@@ -397,7 +396,7 @@ def legacy_brdf(diffuse_lobe: bool, specular_lobe: bool, model: str):
         c_spec = specular_f0(base_color, metallic, specular)
         out = wp.vec3(0.0)
         if wp.static(diffuse_lobe):
-            # c_diff (1 - c_spec) keeps c_diff + c_spec <= 1 (seed 002)
+            # c_diff (1 - c_spec) keeps c_diff + c_spec <= 1 (Lagarde 2011)
             out = wp.cw_mul(wp.vec3(1.0) - c_spec, base_color) * ((1.0 - metallic) * Fd_Lambert())
         if wp.static(specular_lobe):
             power = blinn_phong_exponent(alpha_from_roughness(roughness))

@@ -21,8 +21,8 @@ wp.set_module_options({"enable_backward": False})
 # addition), with room to spare.
 STEPPED_EDGE_ROUNDING = wp.constant(wp.float64(1.0e-15))
 # Rows at least this wide solve for their covered run of pixels before stepping along it: the
-# solve (three int64 divisions) pays off only where it skips many uncovered pixels, and in
-# development trials rows of 8 made dense meshes' small triangles slower.
+# solve (three int64 divisions) pays off only where it skips many uncovered pixels; on narrow
+# rows, which dense meshes' small triangles mostly have, it costs more than the tests it saves.
 SPAN_MIN_WIDTH = wp.constant(16)
 # Relative size of c0 . (c1 x c2), for camera-space triangle vertices, below which the eye counts as
 # lying in the triangle's plane: far above the float64 rounding of camera coordinates (1e-16).

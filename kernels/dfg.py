@@ -5,7 +5,7 @@ directional albedo under a white environment, split by Schlick's Fresnel weight 
 
 A = integral of (1 - (1 - v.h)^5) G_vis, B = integral of (1 - v.h)^5 G_vis over GGX half vectors,
 G_vis = G v.h / (n.h n.v), with Smith/Schlick-GGX G and k = roughness^2 / 2, the remapping for
-image-based lighting (Karis 2013; seed 001's k_IBL = alpha^2 / 2 with its alpha = roughness).
+image-based lighting (Karis 2013's k_IBL = alpha^2 / 2, there with alpha = roughness).
 """
 
 import functools
@@ -30,7 +30,7 @@ DFG_SAMPLES = 4096
 @wp.func
 def G_SchlickGGX_IBL(n_dot_v: float, n_dot_l: float, roughness: float) -> float:
     """Smith's separable G with Schlick-GGX and k = roughness^2 / 2, for image-based lighting
-    (Karis 2013; seed 001)."""
+    (Karis 2013)."""
     k = alpha_from_roughness(roughness) / 2.0
     return n_dot_v / (n_dot_v * (1.0 - k) + k) * n_dot_l / (n_dot_l * (1.0 - k) + k)
 
@@ -39,7 +39,7 @@ def G_SchlickGGX_IBL(n_dot_v: float, n_dot_l: float, roughness: float) -> float:
 def integrate_dfg(samples: int, out: wp.array2d(dtype=wp.vec2)):
     """(A, B) at each (n.v, roughness) by sampling the GGX normals visible from v (Heitz 2018) at
     Hammersley points: the weight f n.l / pdf = G / G1(v) stays below 1, where sampling D n.h
-    (Karis' listing) has weights that blow up at grazing n.v (0.8% off at n.v = 0.08 with 4096 samples)."""
+    (Karis' listing) has weights that blow up at grazing n.v, where it then converges slowly."""
     i, j = wp.tid()
     size = out.shape[0]
     n_dot_v = (float(i) + 0.5) / float(size)
@@ -69,8 +69,8 @@ DFG_TABLE_VERSION = 1
 
 @functools.cache
 def dfg_table(size: int = DFG_TABLE_SIZE, samples: int = DFG_SAMPLES) -> wp.array2d:
-    """The (size, size) table of (A, B): integrated once (4096 samples per cell, ~0.1 s at 32 x 32
-    on one core) and cached on disk beside Warp's kernel cache, so later processes only read it."""
+    """The (size, size) table of (A, B): integrated once (``samples`` per cell) and cached on disk
+    beside Warp's kernel cache, so later processes only read it."""
     wp.init()  # sets the kernel cache directory
     path = os.path.join(wp.config.kernel_cache_dir, f"pbrwarp_dfg_v{DFG_TABLE_VERSION}_{size}x{size}_{samples}.npy")
     try:

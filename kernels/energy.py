@@ -25,7 +25,7 @@ from .loading import CPU_BLOCK_DIM, load_for_cpu
 wp.set_module_options({"enable_backward": False})
 
 # Rows: n.v = (i + 0.5) / SIZE; columns: roughness = j / (SIZE - 1). 32 rows resolve the steep
-# rise of Fresnel reflectance near grazing views that 16 rows blurred (the furnace test's error).
+# rise of Fresnel reflectance near grazing views, which fewer rows blur (the furnace tests see it).
 ALBEDO_TABLE_SIZE = 32
 ALBEDO_SAMPLES = 8192
 # Points of the midpoint rule for the cosine-weighted averages over n.l (of the interpolated table).
@@ -43,8 +43,8 @@ def fresnel_weight(shape: int, v_dot_h: float) -> float:
     return wp.pow(2.0, (-5.55473 * v_dot_h - 6.98316) * v_dot_h)
 
 
-# The exact dielectric Fresnel is not linear in f0: its albedo uses Schlick's split, which it
-# approximates (within ~1% in albedo for f0 <= 0.08).
+# The exact dielectric Fresnel is not linear in f0: its albedo uses Schlick's split, which is
+# close to it over dielectrics' f0.
 FRESNEL_SHAPES = {"none": 0, "schlick": 1, "exact": 1, "spherical_gaussian": 2}
 
 
@@ -132,8 +132,8 @@ def interpolate_rows(table: np.ndarray, mu: np.ndarray) -> np.ndarray:
 def integrated_albedo(distribution: str, geometry: str, fresnel: str, cache_dir: str | None = None) -> np.ndarray:
     """The integrating kernel's (SIZE, SIZE, 2) float32 output for a rung triple. Kept in
     ``cache_dir`` (default: Warp's kernel cache directory), named by the kernel's module hash
-    (which covers its code and every function it calls) and its inputs, since it costs ~0.5 s of
-    one core per process otherwise; computed in row bands on every core where no valid copy is
+    (which covers its code and every function it calls) and its inputs, so that only the first
+    process pays for the integration; computed in row bands on every core where no valid copy is
     there."""
     size = ALBEDO_TABLE_SIZE
     kernel = albedo_kernel(distribution, geometry)

@@ -65,10 +65,10 @@ def split_sum_specular(prefiltered: wp.vec3, f0: wp.vec3, f90: wp.vec3, dfg: wp.
 
 @wp.func
 def F_SchlickRoughness(f0: wp.vec3, f90: wp.vec3, n_dot_v: float, roughness: float) -> wp.vec3:
-    """Lagarde's roughness-aware Fresnel for ambient light (seed 002, "FresnelSchlickWithRoughness"):
+    """Lagarde's roughness-aware Fresnel for ambient light (Lagarde 2011, "FresnelSchlickWithRoughness"):
     Schlick's with the grazing value lowered to max(gloss, f0), gloss = 1 - roughness, since a rough
     lobe averages Fresnel over many half vectors; f90 scales the gloss (KHR_materials_specular),
-    so f90 = 1 is seed 002's formula."""
+    so f90 = 1 is Lagarde's formula."""
     x = wp.clamp(1.0 - n_dot_v, 0.0, 1.0)
     x2 = x * x
     grazing = wp.max(f90 * (1.0 - roughness), f0)

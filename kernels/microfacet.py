@@ -10,7 +10,7 @@ import warp as wp
 wp.set_module_options({"enable_backward": False})
 
 PI = wp.constant(3.14159265358979323846)
-# Floor of alpha^2 = roughness^4 (the seeds' MIN_ROUGHNESS): keeps D finite at roughness 0.
+# Floor of alpha^2 = roughness^4: keeps D finite at roughness 0 (n.h = 1).
 MIN_ALPHA_SQ = wp.constant(1.0e-7)
 
 
@@ -38,7 +38,7 @@ def D_GGX(alpha: float, n_dot_h: float, one_minus_n_dot_h_sq: float) -> float:
 @wp.func
 def V_SmithSchlickGGX(n_dot_v: float, n_dot_l: float, roughness: float) -> float:
     """Smith's separable G with Schlick-GGX, k = (roughness + 1)^2 / 8 for punctual lights
-    (Karis 2013, seeds 001/004), divided by 4 n.l n.v: the visibility form (Filament's V).
+    (Karis 2013), divided by 4 n.l n.v: the visibility form (Filament's V).
     With G1(x) = x / (x (1 - k) + k), the n.l and n.v of the denominator cancel exactly, so
     grazing cosines (down to denormals) give no 0/0."""
     r = roughness + 1.0
@@ -55,7 +55,7 @@ def blinn_phong_exponent(alpha: float) -> float:
 
 @wp.func
 def D_BlinnPhong(alpha: float, n_dot_h: float) -> float:
-    """Normalized Blinn-Phong NDF, (a_p + 2) / (2 pi) (n.h)^a_p (seed 002)."""
+    """Normalized Blinn-Phong NDF, (a_p + 2) / (2 pi) (n.h)^a_p (Walter et al. 2007)."""
     if n_dot_h <= 0.0:
         return 0.0
     power = blinn_phong_exponent(alpha)

@@ -27,8 +27,8 @@ wp.set_module_options({"enable_backward": False})
 # linear mip mapping; a lookup interpolates between the two nearest).
 PREFILTER_LEVELS = 6
 # GGX samples per texel of prefiltered level 1; a sampled level with 4x fewer texels takes 4x more.
-# Levels sampled (not gathered) are within 3% (mean) of brute-force prefiltering on the shared
-# HDRs, rooitou_park's 58,000-radiance sun included (tests/test_ibl.py).
+# Enough that sampled (not gathered) levels stay close to brute-force prefiltering even with a
+# small, very bright sun in the image (tests/test_ibl.py bounds the mean error).
 PREFILTER_SAMPLES = 256
 # Rows of prefiltered level 1 (roughness 0.2) at most; level k has half the rows of level k - 1.
 # A GGX lobe of roughness 0.2 is ~6 degrees wide at half maximum, 4 texels at this size, and its
@@ -39,8 +39,8 @@ LEVEL_MIN_HEIGHT = 16
 # The source's mip pyramid, read by sampling and gathers, stops at this many rows.
 PYRAMID_MIN_HEIGHT = 4
 # A level is gathered when that takes at most this many weight evaluations (output texels times
-# pyramid texels; 2^26 is ~0.3 s on one core), else sampled. At 1024 x 512 roughness 0.4 and up
-# are gathered.
+# pyramid texels), which bounds a gather's cost, else sampled. At 1024 x 512 roughness 0.4 and
+# up are gathered.
 GATHER_BUDGET = 1 << 26
 # Rows of the coarsest pyramid level a gather reads.
 GATHER_MIN_HEIGHT = 64

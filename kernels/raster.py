@@ -76,9 +76,8 @@ DRAW_UNOCCLUDED = wp.constant(3)
 # FACING_SHARE faces away. With more samples per triangle, the triangles facing the eye are too
 # large to be drawn in the first pass (they are binned, drawn last) and the tests read more
 # samples for each triangle they may cull; with fewer clusters facing away, the pass's barrier
-# costs more than the tests save. Development measurements, 2 threads, in-process A/B: an
-# 82k-triangle icosphere at 1024² (13 samples per triangle) 18% faster in two passes, at 2048²
-# (51) 5% slower; the Stanford bunny (69k) at 1024² 4% faster.
+# costs more than the tests save. bench/visibility.py times the rasterizer with clusters culled
+# as pw.render culls them.
 SAMPLES_PER_TRIANGLE = wp.constant(16)
 FACING_SHARE = wp.constant(8)
 # Clusters sampled to estimate how many face away from the eye (occlusion_pass_pays).
@@ -159,8 +158,7 @@ def count_batch(draw: int, batch: int, owner: int, batch_size: int, mesh: Raster
     deferred = int(0)
     occluded = int(0)
     # the clusters' fates first, in a loop of their own, which keeps the drawing loop below as
-    # lean as without clusters (development measurement: tests inlined into it cost the terrain
-    # ~100 ns per cluster)
+    # lean as without clusters (tests inlined into it slow the drawing of every triangle)
     if draw == DRAW_CULLED or draw == DRAW_FIRST:
         for cluster in range(first_cluster, end_cluster):
             fate = NOT_DEFERRED
@@ -230,10 +228,8 @@ def visibility_pipeline(launch: int, first_stage: int, stop_after_binning: int, 
     one for the tiles) and takes them in order, then takes what is left of the others' ranges from
     their ends
     (take_next_from_ranges), so that each draws a region of the mesh of its own, on screen mostly
-    apart from the others', and finds the buffer's lines there in its own core's cache (the
-    batches of one shared queue had each launch draw all over the mesh: 2 threads, 1024²,
-    development A/B, icosphere 3.8-3.9 -> 3.5 ms, bunny 4.2-4.8 -> 3.9-4.0, happy Buddha 17.4-17.9
-    -> 16.2-16.4):
+    apart from the others', and finds the buffer's lines there in its own core's cache (with one
+    queue shared by all, each launch would draw all over the mesh and the image):
     small triangles drawn into the buffer at once (atomically, as another launch may draw the same
     sample), the others that may cover a sample listed by the launch that drew them (their owner)
     with their screen rectangles at bins.binned_face and bins.binned_rect [owner triangles, +
@@ -367,16 +363,15 @@ def visibility_pipeline(launch: int, first_stage: int, stop_after_binning: int, 
     if not all_arrived(sync, BARRIER_FILLED, launches, ABORTED, SPINS_BEFORE_YIELD, work.os_yield):
         return
     # only tiles with something to draw are handed out: taking one from a queue shared by the
-    # launches, its counter fetched from the other core's cache, cost more than an empty tile
-    # (2 threads: ~60 us of the 1024 tiles' ~70 at 1024², where dense meshes bin almost nothing;
-    # development); each launch draws its own band of them first, then takes the others' from
-    # their ends, far from where their owners draw
+    # launches fetches its counter from another core's cache, which costs more than an empty
+    # tile, and dense meshes bin almost nothing; each launch draws its own band of them first,
+    # then takes the others' from their ends, far from where their owners draw
     listed, tile_owner = take_next_from_ranges(work.batch_ranges, 2 * launches, launch, launches, launch)
     while listed >= 0:
         rasterize_tile(bins.busy_tiles[listed], mesh, bins, target, cam, proj)
         listed, tile_owner = take_next_from_ranges(work.batch_ranges, 2 * launches, launch, launches, tile_owner)
     # launch 0 returns once every launch is done drawing, so that the caller need not wait for the
-    # pool threads' return to Python and their wake-up of it (~0.1 ms a call, development); the
+    # pool threads' return to Python and their wake-up of it (a GIL hand-over each); the
     # launches that stop earlier all stop at the same stage, having drawn all they draw
     all_done(sync, FINISHED, 1, wp.where(launch == 0, launches, 0), ABORTED, SPINS_BEFORE_YIELD, work.os_yield)
     if launch != 0:

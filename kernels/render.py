@@ -340,8 +340,7 @@ def render_kernel(features):
         # Launched once per thread: takes rows_per_take rows at a time from the counter
         # rows[ROWS_TAKEN], shared by every launch, until none are left (or rows[STOP] is set), so
         # that the threads finish together. (Not a thread index per pixel or row: Warp's CPU code
-        # copies the kernel's arguments, structs of arrays of about a kilobyte, for every index,
-        # which per pixel cost ~10% of a frame.)
+        # copies the kernel's arguments, structs of arrays of about a kilobyte, for every index.)
         first_row = take_next_item_from(rows, ROWS_TAKEN) * rows_per_take
         while first_row < cam.height and read_counter(rows, STOP) == 0:
             for py in range(first_row, wp.min(first_row + rows_per_take, cam.height)):

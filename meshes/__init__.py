@@ -46,7 +46,9 @@ MIN_GRID_ROUGHNESS = 0.05
 
 # ---------------------------------------------------------------------- sphere grid
 def icosphere(subdivisions: int = 4, radius: float = 1.0):
-    """A ``trimesh`` icosphere (20 * 4^subdivisions triangles) centred at the origin."""
+    """A ``trimesh.Trimesh`` icosphere of 20 * 4^``subdivisions`` triangles (default 4: 5,120)
+    and ``radius`` world units (default 1), centred at the origin. InputError unless
+    ``subdivisions`` is a whole number >= 0."""
     import trimesh
 
     if isinstance(subdivisions, bool) or not isinstance(subdivisions, (int, np.integer)) or subdivisions < 0:
@@ -56,10 +58,13 @@ def icosphere(subdivisions: int = 4, radius: float = 1.0):
 
 def sphere_grid(rows: int = 7, cols: int = 7, base_color=(0.9, 0.9, 0.9), subdivisions: int = 4,
                 spacing: float = 2.5, radius: float = 1.0, min_roughness: float = MIN_GRID_ROUGHNESS) -> pw.Scene:
-    """Unit spheres on a ``rows`` x ``cols`` grid in the z = 0 plane, centred at the origin and
-    facing +z, one :class:`pw.Material` each: metallic grows from 0 (bottom row) to 1 (top row),
-    roughness from 0 (left column, clamped to ``min_roughness``) to 1 (right column), as in
-    LearnOpenGL's "PBR / Lighting" chapter. No lights: callers add their own.
+    """A scene of spheres (:func:`icosphere` of ``subdivisions`` and ``radius``) on a ``rows`` x
+    ``cols`` grid (default 7 x 7), ``spacing`` world units apart (default 2.5), in the z = 0 plane,
+    centred at the origin and facing +z, one :class:`pw.Material` of linear RGB ``base_color``
+    each: metallic grows from 0 (bottom row) to 1 (top row), roughness from 0 (left column,
+    clamped to ``min_roughness``, default 0.05) to 1 (right column), as in LearnOpenGL's
+    "PBR / Lighting" chapter. No lights: callers add their own. InputError for ``rows`` or
+    ``cols`` below 1 or a ``spacing`` not > 0.
     """
     for name, value in (("rows", rows), ("cols", cols)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
@@ -97,12 +102,12 @@ def _box_blur(a: np.ndarray, radius: int) -> np.ndarray:
 
 
 def height_to_normal_map(height: np.ndarray, strength: float = 1.0) -> np.ndarray:
-    """A tangent-space normal map (uint8 RGB, glTF/OpenGL convention: +X right, +Y up in the
-    image, i.e. green grows where the surface faces the top of the image) from a height field
-    given in texel units, by periodic central differences.
+    """A tangent-space normal map, an (H, W, 3) uint8 RGB array (glTF/OpenGL convention: +X
+    right, +Y up in the image, i.e. green grows where the surface faces the top of the image),
+    from ``height``, an (H, W) height field in texel units, by periodic central differences.
 
-    ``strength`` scales the heights: a slope of one height unit per texel tilts the normal by
-    ``atan(strength)``.
+    ``strength`` (default 1) scales the heights: a slope of one height unit per texel tilts the
+    normal by ``atan(strength)``. InputError unless ``height`` is 2-D.
     """
     h = np.asarray(height, dtype=np.float64)
     if h.ndim != 2:
@@ -119,9 +124,12 @@ def brick_textures(size: int = 512, courses: int = 8, bricks_per_course: int = 4
                    strength: float = 1.0):
     """A seamlessly tiling running-bond brick wall: ``(base_color, normal_map, height)`` with
     ``base_color`` an sRGB uint8 (size, size, 3) array, ``normal_map`` uint8 RGB from
-    :func:`height_to_normal_map` and ``height`` float in [0, 1] (1 = brick face, 0 = mortar).
-    ``strength`` is the steepness of the rounded brick edges: 1 tilts their normals by 45 degrees
-    on average (56 at the steepest).
+    :func:`height_to_normal_map` and ``height`` float32 in [0, 1] (1 = brick face, 0 = mortar).
+    ``size`` texels a side (default 512), ``courses`` rows of bricks (default 8) of
+    ``bricks_per_course`` bricks (default 4); ``seed`` (default 7) picks the bricks' random tints
+    and grain. ``strength`` is the steepness of the rounded brick edges: 1 (the default) tilts
+    their normals by 45 degrees on average (56 at the steepest). InputError unless ``size`` >= 16
+    is divisible by ``courses`` and by 2 ``bricks_per_course``.
     """
     if size < 16 or size % courses or size % (2 * bricks_per_course):
         raise pw.InputError("brick_textures size must be >= 16 and divisible by courses and 2 * bricks_per_course")
@@ -166,7 +174,8 @@ def brick_textures(size: int = 512, courses: int = 8, bricks_per_course: int = 4
 
 
 def brick_material(size: int = 512, roughness: float = 0.75, normal_scale: float = 1.0) -> pw.Material:
-    """A dielectric :class:`pw.Material` with :func:`brick_textures` as base colour and normal map."""
+    """A dielectric :class:`pw.Material` of ``roughness`` (default 0.75) with :func:`brick_textures`
+    of ``size`` (default 512) as base colour and normal map, the map scaled by ``normal_scale``."""
     base_color, normal_map, _ = brick_textures(size)
     return pw.Material(base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=roughness,
                        base_color_texture=pw.Texture(base_color), normal_texture=pw.Texture(normal_map),
@@ -205,9 +214,11 @@ def _orient_faces(positions, faces, normals) -> np.ndarray:
 
 def normal_mapped_torus(major_radius: float = 2.0, minor_radius: float = 0.85, segments: int = 160,
                         rings: int = 64, repeats=(3, 1), material: pw.Material | None = None) -> pw.Primitive:
-    """A torus around the +Y axis with UVs, analytic normals and tangents, and (by default) the
-    brick material of :func:`brick_material`. ``repeats``: (around the ring, around the tube)
-    texture repetitions; whole numbers keep the seams invisible."""
+    """A :class:`pw.Primitive` torus around the +Y axis, centred at the origin, with radii
+    ``major_radius`` (default 2) and ``minor_radius`` (default 0.85) in world units,
+    ``segments`` x ``rings`` quads (default 160 x 64), UVs, analytic normals and tangents, and
+    ``material`` (default: :func:`brick_material`'s). ``repeats``: (around the ring, around the
+    tube) texture repetitions, default (3, 1); whole numbers keep the seams invisible."""
     phi = np.linspace(0.0, 2.0 * math.pi, segments + 1)   # around the Y axis -> u
     theta = np.linspace(0.0, 2.0 * math.pi, rings + 1)    # around the tube -> v
     ph, th = np.meshgrid(phi, theta)                       # shape (rings + 1, segments + 1)
@@ -229,8 +240,10 @@ def normal_mapped_torus(major_radius: float = 2.0, minor_radius: float = 0.85, s
 
 
 def normal_mapped_tile(size: float = 4.0, repeats: float = 1.0, material: pw.Material | None = None) -> pw.Primitive:
-    """A ``size`` x ``size`` square in the z = 0 plane facing +z, with the texture upright as
-    seen from +z (UV (0, 0) at the top-left corner), tangent +x and bitangent +y (w = +1)."""
+    """A :class:`pw.Primitive` square of ``size`` x ``size`` world units (default 4) centred in
+    the z = 0 plane, facing +z, the texture upright as seen from +z (UV (0, 0) at the top-left
+    corner) and repeated ``repeats`` times across (default 1), tangent +x and bitangent +y
+    (w = +1); ``material`` defaults to :func:`brick_material`'s."""
     h = size / 2.0
     positions = np.array([[-h, h, 0.0], [h, h, 0.0], [-h, -h, 0.0], [h, -h, 0.0]])
     uvs = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]) * repeats
@@ -261,10 +274,11 @@ def _translation(offset):
 
 
 def demo_scene() -> tuple[pw.Scene, pw.Camera]:
-    """The 7 x 7 sphere grid (gold-coloured, so metals are told apart from dielectrics by their
-    tinted highlights), a brick torus standing to its right, a warm directional key light
-    (3 lux) and two point lights in front; framed for a 16:9 image. Meant to be rendered over
-    :data:`DEMO_BACKGROUND` with the default ACES tone map."""
+    """``(scene, camera)``: the 7 x 7 sphere grid (gold-coloured, so metals are told apart from
+    dielectrics by their tinted highlights), a brick torus standing to its right, a warm
+    directional key light (3 lux) and two point lights in front (180 and 120 cd); the camera
+    frames them for a 16:9 image. Meant to be rendered over :data:`DEMO_BACKGROUND` with the
+    default ACES tone map."""
     scene = sphere_grid(base_color=(0.9, 0.6, 0.2))
     torus = normal_mapped_torus(major_radius=2.3, minor_radius=1.0)
     # stand the torus up (its hole facing the camera, turned 35 degrees to show its depth)
@@ -304,8 +318,10 @@ def bunny(decimated: bool = True):
 
 
 def mesh_scene(mesh, material: pw.Material | None = None, fov_y: float = 40.0) -> tuple[pw.Scene, pw.Camera]:
-    """One mesh (a ``trimesh.Trimesh`` or :class:`pw.Primitive`) with a 3 lux key light from over
-    the camera's shoulder and a camera framing it: a ready-made benchmark scene."""
+    """``(scene, camera)``: one mesh (a ``trimesh.Trimesh`` or :class:`pw.Primitive`) with
+    ``material`` (default: grey, roughness 0.4), a camera framing it (:meth:`pw.Camera.frame`
+    with ``fov_y`` degrees, default 40) and a 3 lux key light from over the camera's shoulder: a
+    ready-made benchmark scene."""
     scene = pw.Scene()
     scene.add_mesh(mesh, material or pw.Material(base_color=(0.8, 0.8, 0.8), roughness=0.4))
     camera = pw.Camera.frame(scene, fov_y=fov_y)

@@ -13,27 +13,28 @@ from pbrwarp.kernels.microfacet import DISTRIBUTIONS, GEOMETRY_MODELS
 class BRDF:
     """Which model each BRDF term uses; each choice is compiled in, not branched on per pixel.
 
-    The default terms are the seeds' model, the common real-time choice (Karis 2013): Lambert
-    diffuse, GGX distribution, Smith with Schlick-GGX (k = (roughness + 1)^2 / 8), Schlick Fresnel,
-    single scattering. The diffuse lobe's share of the light defaults to the energy-conserving
-    albedo coupling rather than the seeds' 1 - F(v.h), which makes smooth white dielectrics at
-    grazing views reflect up to ~6% more light than they receive (the white furnace test).
+    The defaults are the common real-time model (Karis 2013): Lambert diffuse, GGX distribution,
+    Smith with Schlick-GGX (k = (roughness + 1)^2 / 8), Schlick Fresnel, single scattering, with
+    the energy-conserving albedo coupling of the diffuse lobe rather than the common 1 - F(v.h),
+    which makes smooth white dielectrics at grazing views reflect more light than they receive
+    (tests/test_energy.py). Each field takes one of the names below, the first its default; any
+    other raises InputError.
 
-    - ``diffuse``: "lambert" | "burley" (Disney 2012)
+    - ``diffuse``: "lambert" | "burley" (Burley 2012)
     - ``distribution``: "ggx" | "blinn_phong" (normalized, exponent 2/alpha^2 - 2)
-    - ``geometry``: "implicit" (G = n.l n.v) | "schlick_ggx" | "smith_separable" (Walter 2007)
-      | "smith_correlated" (Heitz 2014) | "smith_correlated_fast" (Hammon 2017)
-    - ``fresnel``: "none" (F = f0) | "schlick" | "spherical_gaussian" (Lagarde 2012) | "exact"
+    - ``geometry``: "schlick_ggx" | "implicit" (G = n.l n.v) | "smith_separable" (Walter et al.
+      2007) | "smith_correlated" (Heitz 2014) | "smith_correlated_fast" (Hammon 2017)
+    - ``fresnel``: "schlick" | "none" (F = f0) | "spherical_gaussian" (Lagarde 2012) | "exact"
       (dielectric Fresnel with the IOR f0 implies; conductor Fresnel for materials with a
       ``complex_ior``)
     - ``energy``: "single" | "multiscatter" (energy compensation of the specular lobe with its
       single-scattering albedo, integrated by a Warp kernel: Kulla & Conty 2017, Fdez-Agüera 2019)
-    - ``coupling``: the diffuse lobe's share of light, "albedo" ((1 - E(v))(1 - E(l)) / (1 - E_avg)
-      with E the specular albedo; Kelemen & Szirmay-Kalos 2001) | "fresnel" (the seeds' 1 - F(v.h))
-      | "none" (diffuse + specular, as Filament)
+    - ``coupling``, the diffuse lobe's share of light: "albedo" ((1 - E(v))(1 - E(l)) / (1 - E_avg)
+      with E the specular albedo; Kelemen & Szirmay-Kalos 2001) | "fresnel" (1 - F(v.h), as
+      LearnOpenGL's PBR tutorial weights it) | "none" (diffuse + specular, as Filament)
     - ``model``: "microfacet" (Cook-Torrance with the terms above) | "phong" | "blinn_phong": the
-      legacy non-PBR baselines, Lambert plus a normalized (Blinn-)Phong lobe (seeds 000 and 002),
-      which ignore the other terms
+      legacy non-PBR baselines, Lambert plus a normalized (Blinn-)Phong lobe (Lafortune & Willems
+      1994; Lagarde 2011), which ignore the other terms
     """
 
     diffuse: str = "lambert"
@@ -59,14 +60,14 @@ class BRDF:
                 f"{self.fresnel} Fresnel, {self.energy} scattering, {self.coupling} coupling")
 
 
-# Quality presets: the rungs each selects. "balanced" is the default because it is the model the
-# seeds teach and real-time engines ship (Karis 2013): GGX with Schlick's Fresnel and the
+# Quality presets: the rungs each selects. "balanced" is the default because it is the model
+# tutorials teach and real-time engines ship (Karis 2013): GGX with Schlick's Fresnel and the
 # Schlick-GGX geometry term, whose cost is a few multiply-adds over the cheapest rungs.
 PRESETS = {
-    # the cheapest rung of every term: Blinn-Phong NDF, G = n.l n.v, exp2 Fresnel, and the seeds'
+    # the cheapest rung of every term: Blinn-Phong NDF, G = n.l n.v, exp2 Fresnel, and the
     # 1 - F coupling (no table lookups; "none" would be cheaper still but adds the lobes' energies)
     "fast": BRDF(distribution="blinn_phong", geometry="implicit", fresnel="spherical_gaussian", coupling="fresnel"),
-    # the seeds' model
+    # the real-time model (Karis 2013)
     "balanced": BRDF(),
     # the exact Smith term (Heitz 2014) and Disney diffuse, with Schlick's Fresnel
     "accurate": BRDF(diffuse="burley", geometry="smith_correlated"),

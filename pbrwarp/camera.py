@@ -42,10 +42,13 @@ def _image_up(forward, up) -> np.ndarray:
 
 @dataclass
 class Camera(validate.Checked):
-    """A pinhole camera at ``eye`` looking along ``forward``; ``fov_y`` is the vertical field of
-    view in degrees, strictly between 0 and 180. The image's aspect ratio comes from the render
-    size. ``forward`` is stored normalized and ``up`` made perpendicular to it (unit length, in
-    the plane of the two), also when either is set later; every field is checked when set."""
+    """A pinhole camera at ``eye`` (world units, within float32's range) looking along
+    ``forward`` (any non-zero vector); ``up`` is the image's up direction, and ``fov_y`` the
+    vertical field of view in degrees, strictly between 0 and 180 (default 45). The image's
+    aspect ratio comes from the render size. ``forward`` is stored normalized and ``up`` made
+    perpendicular to it (unit length, in the plane of the two), also when either is set later.
+    Every field is checked when set, by the constructor or later: InputError for a value out of
+    range or an ``up`` parallel to ``forward``, InputTypeError for one that is not numbers."""
 
     eye: tuple
     forward: tuple
@@ -64,17 +67,23 @@ class Camera(validate.Checked):
 
     @property
     def right(self) -> tuple:
+        """The image's right direction, forward x up (unit length)."""
         return tuple(float(c) for c in np.cross(self.forward, self.up))
 
     @classmethod
     def look_at(cls, eye, target, up=(0.0, 1.0, 0.0), fov_y: float = 45.0) -> "Camera":
+        """A camera at ``eye`` looking at ``target`` (world positions, which must differ), ``up``
+        (default +Y) turned into the image's up, ``fov_y`` the vertical field of view in degrees
+        (default 45). InputError for coinciding points or an ``up`` along the view."""
         eye_v = np.asarray(validate.finite_vector(eye, 3, "Camera eye"))
         target_v = np.asarray(validate.finite_vector(target, 3, "Camera target"))
         return cls(eye=tuple(eye_v), forward=tuple(target_v - eye_v), up=up, fov_y=fov_y)
 
     @classmethod
     def from_matrix(cls, camera_to_world, fov_y: float = 45.0) -> "Camera":
-        """A camera from a 4x4 camera-to-world matrix in the glTF/OpenGL convention (looking down -Z, +Y up)."""
+        """A camera from a 4x4 camera-to-world matrix in the glTF/OpenGL convention (looking down -Z,
+        +Y up; the eye is its translation), ``fov_y`` the vertical field of view in degrees
+        (default 45). InputError for a matrix that is not a finite 4x4 one."""
         m = np.asarray(camera_to_world, dtype=np.float64)
         if m.shape != (4, 4) or not np.all(np.isfinite(m)):
             raise InputError(f"camera matrix must be a finite 4x4 matrix, got shape {m.shape}")
@@ -83,13 +92,16 @@ class Camera(validate.Checked):
     @classmethod
     def frame(cls, scene, direction=(0.6, 0.45, 1.0), up=(0.0, 1.0, 0.0), fov_y: float = 45.0,
               margin: float = 1.1, aspect: float = 1.0) -> "Camera":
-        """A camera looking at the whole scene from ``direction`` (pointing from the scene towards
-        the eye), as close as every vertex allows: the scene's projection is centred in the image
-        and spans 1/``margin`` of it along the tighter of the two axes (and at most that along the
-        other). ``aspect`` is the width / height of the image it frames (render's width / height):
-        the default, 1, frames a square image and so also fits any wider one. The image's up is
-        ``up`` made perpendicular to the view direction; where the two are parallel, -Z (+Y if the
-        view is along Z)."""
+        """A camera looking at the whole scene from ``direction`` (a vector pointing from the scene
+        towards the eye; default (0.6, 0.45, 1)), as close as every vertex allows: the scene's
+        projection is centred in the image and spans 1/``margin`` of it (default 1.1, > 0) along
+        the tighter of the two axes, and at most that along the other. ``aspect`` is the width /
+        height of the image it frames (render's width / height): the default, 1, frames a square
+        image and so also fits any wider one. ``fov_y`` is the vertical field of view in degrees
+        (default 45). The image's up is ``up`` (default +Y) made perpendicular to the view
+        direction; where the two are parallel, -Z (+Y if the view is along Z). InputError for a
+        scene without meshes, a bad argument, or a scene so large that the eye would leave
+        float32's range."""
         if not scene.primitives:
             raise InputError("the scene has no meshes: Camera.frame has nothing to frame")
         points = np.concatenate([scene.cache.fact("hull points", p, _hull_points) for p in scene.primitives])

@@ -28,6 +28,7 @@ from .camera import Camera
 from .errors import InputError, PbrwarpError
 from .frame import MAX_EXPOSURE
 from .lights import DirectionalLight, PointLight, SpotLight
+from .parallel import MAX_THREADS_PER_CORE
 
 PROG = "pbrwarp"
 EXIT_INTERNAL_ERROR = 1
@@ -235,7 +236,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="output image; the extension picks the format (.png, .jpg, ... tone mapped; "
                             ".npy: linear float32 RGBA)")
         p.add_argument("--size", type=parse_size, default=default_size, metavar="WxH",
-                       help=f"image size in pixels (default {default_size[0]}x{default_size[1]})")
+                       help=f"image size in pixels, each side 1 to {MAX_SIDE} "
+                            f"(default {default_size[0]}x{default_size[1]})")
         p.add_argument("--spp", type=_positive_int("samples per pixel"), default=default_spp, metavar="N",
                        help=f"samples per pixel (default {default_spp})")
         p.add_argument("--tonemap", choices=("none", "reinhard", "aces"), default="aces",
@@ -248,20 +250,20 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--shadow-maps", dest="shadows", action="store_const", const="map",
                        help="look shadows up in shadow maps instead of tracing shadow rays (faster, approximate)")
         p.add_argument("--threads", type=_positive_int("thread count"), default=None, metavar="N",
-                       help="worker threads (default: every core)")
+                       help=f"worker threads, at most {MAX_THREADS_PER_CORE} per core (default: one per core)")
         p.add_argument("--background", type=parse_colour, default=None, metavar="R,G,B",
                        help="linear radiance where no surface is hit (default: the --env environment, else 0,0,0)")
         p.add_argument("--transparent", action="store_true",
                        help="write coverage as alpha (PNG, WebP, TIFF) instead of the background")
         p.add_argument("--quality", choices=("fast", "balanced", "accurate", "reference"), default=None,
-                       help="BRDF preset (default balanced; see the README's accuracy table)")
+                       help="BRDF preset (default balanced; docs/accuracy.md gives each one's error and cost)")
         p.add_argument("--visibility", choices=("auto", "raycast", "raster"), default="auto",
                        help="primary visibility: ray cast, rasterized, or the cheaper by a cost model (default)")
         p.add_argument("--env", metavar="HDR", default=None,
                        help="light the scene with an equirectangular .hdr/.exr environment, also shown as the "
                             "background unless --background is given (needs pip install 'pbrwarp[env]')")
         p.add_argument("--env-intensity", type=_finite_float("environment intensity", 0.0), default=1.0, metavar="X",
-                       help="scale of the environment's radiance (default 1)")
+                       help="scale of the environment's radiance, >= 0 (default 1)")
         p.add_argument("--explain", action="store_true",
                        help="print which effects are simulated and why the others are not, then render")
         # also after the command; SUPPRESS keeps a --verbose given before it

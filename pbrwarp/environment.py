@@ -37,11 +37,15 @@ UNIFORM_HEIGHT = 4
 class Environment:
     """Distant lighting from an equirectangular radiance image of (H, 2H, 3) linear RGB texels.
 
-    ``Environment(texels, intensity=1.0, rotation=0.0)`` takes an array; ``load``, ``uniform`` and
-    ``sky`` make one from a file, a colour or a gradient. The texels are kept read-only, so the
-    prefiltered levels and SH coefficients derived from them (``data()``) are computed once per
-    process, for every scene using this environment (pbrwarp.scene_cache.prefiltered_environment);
-    ``intensity`` and ``rotation`` may be changed at any time without recomputing anything.
+    ``Environment(texels, intensity=1.0, rotation=0.0, name="")`` takes an array of shape
+    (H, 2H, 3), finite, non-negative and within float32's range (copied as float32);
+    ``intensity`` (>= 0, default 1) scales the radiance and ``rotation`` turns it about +Y
+    (radians, default 0); ``name`` is for messages. Bad texels or values raise InputError (texels
+    that are not numbers, InputTypeError). ``load``, ``uniform`` and ``sky`` make one from a
+    file, a colour or a gradient. The texels are kept read-only, so the prefiltered levels and SH
+    coefficients derived from them (``data()``) are computed once per process, for every scene
+    using this environment (pbrwarp.scene_cache.prefiltered_environment); ``intensity`` and
+    ``rotation`` may be changed at any time without recomputing anything.
     """
 
     def __init__(self, texels, intensity: float = 1.0, rotation: float = 0.0, name: str = ""):
@@ -102,7 +106,11 @@ class Environment:
     # ------------------------------------------------------------------ making one
     @classmethod
     def load(cls, path, intensity: float = 1.0, rotation: float = 0.0) -> "Environment":
-        """Read an equirectangular Radiance .hdr or OpenEXR .exr image (linear radiance)."""
+        """Read an equirectangular Radiance .hdr or OpenEXR .exr image (linear radiance, twice as
+        wide as tall), with ``intensity`` and ``rotation`` as in the constructor. Needs the ``env``
+        extra (OpenImageIO; ImportError saying so otherwise). AssetNotFoundError for a missing
+        file, AssetFormatError for one that is not such an image or holds NaN, Inf or negative
+        radiance."""
         path, _ = validate.readable_file(path, "environment image", LOADABLE, "equirectangular HDR images")
         pixels = _read_hdr_image(path)
         try:
@@ -112,7 +120,8 @@ class Environment:
 
     @classmethod
     def uniform(cls, color=(1.0, 1.0, 1.0), intensity: float = 1.0) -> "Environment":
-        """The same radiance ``color`` (RGB, or one number for grey) from every direction."""
+        """The same radiance ``color`` (linear RGB >= 0, or one number for grey; default white)
+        from every direction, times ``intensity`` (default 1)."""
         rgb = np.broadcast_to(np.asarray(color, dtype=np.float64), (3,)) if np.ndim(color) == 0 else color
         rgb = validate.colour(rgb, "uniform environment colour")
         texels = np.broadcast_to(np.array(rgb), (UNIFORM_HEIGHT, 2 * UNIFORM_HEIGHT, 3))
@@ -130,7 +139,9 @@ class Environment:
     @classmethod
     def sky(cls, zenith=(0.3, 0.5, 1.0), horizon=(1.0, 1.0, 1.0), ground=(0.3, 0.27, 0.25),
             intensity: float = 1.0, rotation: float = 0.0, height: int = SKY_HEIGHT) -> "Environment":
-        """A sun-less gradient sky (``sky_radiance``) rasterized at its texel centres, 2H x H."""
+        """A sun-less gradient sky (``sky_radiance``) of linear RGB ``zenith``, ``horizon`` and
+        ``ground`` radiances, rasterized at its texel centres into ``height`` rows (default 128)
+        of twice as many columns; ``intensity`` and ``rotation`` as in the constructor."""
         colours = [validate.colour(c, f"sky {what} colour") for c, what in
                    ((zenith, "zenith"), (horizon, "horizon"), (ground, "ground"))]
         height = validate.positive_int(height, "sky height")

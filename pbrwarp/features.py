@@ -23,6 +23,13 @@ from .lights import DIRECTIONAL, POINT, SPOT
 
 @dataclass(frozen=True)
 class Features:
+    """The effects one render kernel holds: a frozen, hashable value, one compiled kernel per
+    value (kernels/render.py render_kernel). Each field is whether an effect is compiled in (True
+    or False), or which variant: the shadow technique, the primary visibility path, the IBL rungs
+    (an :class:`IBL`, or False without an environment) and the :class:`BRDF`. Renders derive it
+    from the scene and options (:func:`scene_features`; :func:`pbrwarp.explain` prints why);
+    the defaults, and :meth:`everything`, compile every effect in."""
+
     base_color_texture: bool = True
     metallic_roughness_texture: bool = True
     emissive_texture: bool = True

@@ -58,6 +58,9 @@ class Frame:
       samples), ``inf`` where nothing was hit.
     - ``normal``: (H, W, 3) world-space shading normal (mean over the pixel's hit samples), 0 on miss.
     - ``alpha``: (H, W) fraction of the pixel's samples that hit a surface.
+    - ``background``: the linear RGB radiance ``rgb`` was composited over.
+
+    ``depth`` and ``normal`` are None for ``render(aovs=False)``.
     """
 
     rgb: np.ndarray
@@ -73,8 +76,10 @@ class Frame:
         return self.rgb - bg * (1.0 - self.alpha[..., None])
 
     def to_srgb8(self, exposure: float = 0.0, tonemap: str = "aces", rgb: np.ndarray | None = None) -> np.ndarray:
-        """(H, W, 3) uint8 sRGB: radiance scaled by 2^exposure (EV stops), tone mapped
-        ("none" clips, "reinhard", "aces"), then sRGB-encoded. NaN maps to black, Inf to white."""
+        """(H, W, 3) uint8 sRGB: radiance (``rgb``, default the frame's) scaled by 2^exposure
+        (EV stops, from -64 to 64, default 0), tone mapped (``tonemap``: "none" clips,
+        "reinhard", "aces", the default), then sRGB-encoded. NaN maps to black, Inf to white.
+        InputError for an unknown tone map or an exposure out of range."""
         if tonemap not in TONEMAPS:
             raise InputError(f"tonemap must be one of {', '.join(TONEMAPS)}, got {tonemap!r}")
         exposure = _checked_exposure(exposure)
@@ -86,7 +91,8 @@ class Frame:
         return out.numpy().reshape(h, w, 3)
 
     def to_rgba8(self, exposure: float = 0.0, tonemap: str = "aces") -> np.ndarray:
-        """(H, W, 4) uint8 sRGB with straight (unassociated) alpha, as PNG stores it."""
+        """(H, W, 4) uint8 sRGB of the surfaces alone (``foreground``) with straight (unassociated)
+        alpha from coverage, as PNG stores it; ``exposure`` and ``tonemap`` as for ``to_srgb8``."""
         a = self.alpha[..., None]
         straight = np.divide(self.foreground, a, out=np.zeros_like(self.rgb), where=a > 0)
         rgb8 = self.to_srgb8(exposure, tonemap, rgb=straight)
@@ -97,9 +103,13 @@ class Frame:
         """Write the frame atomically: into a new hidden file ``.pbrwarp-<random><ext>`` beside
         ``path`` (mode 0o666 less the umask, as any file the user creates), renamed onto ``path``
         once complete; an error or an interrupt removes it, so no half-written file is left.
-        ``exposure`` is in stops, from -64 to 64. ``.png``/``.jpg``/... go through Pillow, tone mapped;
-        ``.npy`` stores linear float32 RGBA (radiance + coverage) for further processing.
-        ``transparent`` writes PNG alpha from coverage instead of the background colour."""
+        The extension picks the format: ``.png``/``.jpg``/... (any Pillow writes) are tone mapped
+        as by ``to_srgb8`` (``exposure`` in stops from -64 to 64, default 0; ``tonemap`` default
+        "aces"); ``.npy`` stores linear float32 RGBA (radiance + coverage) for further processing.
+        ``transparent`` (default False) writes alpha from coverage instead of the background
+        colour (PNG, WebP, TIFF). InputError for a folder that does not exist, an unknown
+        extension, a format without alpha for ``transparent``, or a bad exposure or tone map;
+        OSError from the file system as it is."""
         path = os.fspath(path)
         _checked_exposure(exposure)
         ext = os.path.splitext(path)[1].lower()

@@ -243,7 +243,7 @@ def upload(scene) -> GpuScene:
             warnings.warn(f"mesh {prim.name!r} has textures but no UVs: its textures are ignored", stacklevel=3)
 
     # the rows as last uploaded while no material or light changed: building Warp structs field
-    # by field costs about a millisecond a render
+    # by field is slow enough to matter in a small render
     rows_key = (geometry, texels, tuple((_content_key(p.material), p.uvs is not None) for p in prims),
                 tuple((type(light), _content_key(light)) for light in scene.lights))
     return cache.get("rows", rows_key, lambda: _upload_rows(scene, prims, geometry, texels))
@@ -284,7 +284,7 @@ def _is_closed_volume(prim) -> bool:
     """Whether a primitive bounds a volume with its faces turned outwards: every directed edge
     appears once and its reverse once (watertight and consistently wound; vertices are not
     merged, so a mesh split at UV seams counts as open) and the signed volume is positive. The
-    edge sort costs ~0.1 s per million triangles: callers keep the answer in the scene cache."""
+    edge sort is costly on large meshes: callers keep the answer in the scene cache."""
     faces = np.asarray(prim.faces, dtype=np.int64)
     closed = len(faces) > 0 and not np.any((faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2])
                                              | (faces[:, 2] == faces[:, 0]))

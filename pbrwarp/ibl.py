@@ -16,18 +16,20 @@ class IBL:
     """Image-based lighting rungs, passed as ``pw.render(..., ibl=pw.IBL(...))`` (the ``quality``
     presets pick one otherwise); they matter only when the scene has an ``environment``.
 
-    - ``method``: "split_sum" (the real-time model of the seeds: diffuse from 9 spherical-harmonic
+    - ``method`` (default "split_sum"): "split_sum" (the real-time model: diffuse from 9 spherical-harmonic
       coefficients of the environment (Ramamoorthi & Hanrahan 2001), specular from a GGX-prefiltered
       mip chain times a DFG table, Karis 2013) | "monte_carlo" (the reference: ``samples`` directions
       per hit, half cosine-weighted, half GGX visible normals (Heitz 2018), combined by the balance
       heuristic, through the very BRDF direct light uses).
-    - ``fresnel`` (split sum): "dfg", the lobe's albedo f0 A + f90 B from the table, and the diffuse
+    - ``fresnel`` (split sum; default "dfg"): "dfg", the lobe's albedo f0 A + f90 B from the table, and the diffuse
       lobe gets the rest | "lagarde", Lagarde's roughness-aware Schlick F(n.v) in place of f0 and
-      1 - F for the diffuse lobe (seed 002; LearnOpenGL).
-    - ``samples``: directions per hit for "monte_carlo".
-    - ``shadowed`` ("monte_carlo" only): trace each direction against the scene, so geometry
-      occludes the environment; otherwise (and for the split sum) the material's occlusion texture
-      scales ambient light, as glTF specifies.
+      1 - F for the diffuse lobe (Lagarde 2011; LearnOpenGL).
+    - ``samples``: directions per hit for "monte_carlo", a whole number >= 1 (default 64).
+    - ``shadowed`` ("monte_carlo" only; default False): trace each direction against the scene,
+      so geometry occludes the environment; otherwise (and for the split sum) the material's
+      occlusion texture scales ambient light, as glTF specifies.
+
+    An unknown name, ``samples`` < 1 or ``shadowed`` with the split sum raises InputError.
     """
 
     method: str = "split_sum"

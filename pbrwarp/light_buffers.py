@@ -50,8 +50,8 @@ MAX_ENTRIES_PER_TRIANGLE = 16
 MAX_ENTRIES_PER_CELL = 8
 # Work items per thread of the stages that split views and lights into blocks; but at most
 # BLOCK_ITEMS triangles or regions, and BLOCK_CELLS cells, a block, so that each job lasts a small
-# fraction of a second and an interrupt waits for little (marking the interiors of the 1.6M-triangle
-# happy Buddha took seconds a block on one thread in 4 blocks; development).
+# fraction of a second and an interrupt waits for little (a job cannot be stopped once launched,
+# and the blocks of a dense scene split only by thread would each take seconds).
 WORK_BLOCKS_PER_THREAD = 4
 BLOCK_ITEMS = 1 << 14
 BLOCK_CELLS = 1 << 15

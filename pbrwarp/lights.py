@@ -40,7 +40,9 @@ def _angle(name):
 
 @dataclass
 class PointLight(validate.Checked):
-    """Light radiating ``intensity`` candela equally in every direction from ``position``."""
+    """Light radiating ``intensity`` candela (>= 0, default 1) of linear RGB ``color`` (>= 0,
+    default white) equally in every direction from ``position`` (world units, within float32's
+    range; default the origin)."""
 
     position: tuple = (0.0, 0.0, 0.0)
     color: tuple = (1.0, 1.0, 1.0)
@@ -52,7 +54,9 @@ class PointLight(validate.Checked):
 
 @dataclass
 class DirectionalLight(validate.Checked):
-    """Light from infinitely far away, travelling along ``direction``; ``intensity`` in lux."""
+    """Light from infinitely far away, travelling along ``direction`` (any non-zero vector, stored
+    normalized; default straight down, (0, -1, 0)): ``intensity`` lux (>= 0, default 1) of linear
+    RGB ``color`` (>= 0, default white) on a surface facing it."""
 
     direction: tuple = (0.0, -1.0, 0.0)
     color: tuple = (1.0, 1.0, 1.0)
@@ -64,9 +68,10 @@ class DirectionalLight(validate.Checked):
 
 @dataclass
 class SpotLight(validate.Checked):
-    """A point light limited to a cone around ``direction``; ``intensity`` in candela on its axis.
+    """A point light at ``position`` limited to a cone around ``direction`` (as for
+    :class:`PointLight` and :class:`DirectionalLight`); ``intensity`` in candela on its axis.
 
-    ``inner_cone`` and ``outer_cone`` are half-angles in radians with
+    ``inner_cone`` and ``outer_cone`` are half-angles in radians (defaults 0 and pi/4) with
     0 <= inner_cone <= outer_cone <= pi/2; between them the intensity falls off smoothly as glTF's
     KHR_lights_punctual specifies. (To widen a cone, set ``outer_cone`` before ``inner_cone``.)
     """

@@ -29,7 +29,8 @@ class LoadLimits:
       instancing (default 2^25, ~33.5 million, each). An accessor without data (a bufferView) may
       not hold more than ``max_vertices`` elements either.
 
-    Each limit is a positive whole number; raise one when a trusted file needs it.
+    Each limit is a positive whole number (InputError, or InputTypeError for a non-integer,
+    otherwise); raise one when a trusted file needs it.
     """
 
     max_texture_side: int = 8192

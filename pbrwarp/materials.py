@@ -24,24 +24,34 @@ class Material(validate.Checked):
 
     Factors are linear (as in glTF) and multiply the matching texture, if any. Every field is
     checked whenever it is set, by the constructor or later (``material.roughness = 7`` raises
-    as ``Material(roughness=7)`` does).
+    InputError as ``Material(roughness=7)`` does; a value of the wrong type raises
+    InputTypeError). Out-of-range values are rejected, not clamped: they nearly always mean a bug
+    upstream (a percentage, a wrong channel).
 
-    - ``base_color``: linear RGB or RGBA. Colour textures are sRGB-encoded unless the
-      :class:`Texture` says otherwise.
-    - ``metallic``, ``roughness``: in [0, 1]; values outside are rejected (not clamped), since
-      they nearly always mean a bug upstream. ``metallic_roughness_texture`` holds roughness in G
-      and metallic in B (glTF).
-    - ``specular``: KHR_materials_specular's strength of the dielectric specular lobe: 1 is the
-      usual f0 = 0.04, 0 removes the lobe entirely (a pure Lambert surface). It scales both f0
-      and f90 of dielectric Fresnel; metals are unaffected.
-    - ``emissive``: emitted radiance in W/(sr m^2) (nits for white), times ``emissive_texture``.
-    - ``normal_texture`` with ``normal_scale``; ``occlusion_texture`` with
-      ``occlusion_strength`` (occlusion only scales ambient/environment light, so it has no
-      effect under punctual lights alone, as glTF specifies).
-    - ``double_sided``: back faces are shaded with flipped normals (the default here, so a lone
-      plane is visible from both sides); when False, back faces are culled for camera rays, as
-      glTF specifies (glTF files set it per material; glTF's own default is False). Shadows are
-      cast by every face either way.
+    - ``base_color``: linear RGB or RGBA, components >= 0, alpha <= 1 (default (0.8, 0.8, 0.8),
+      stored as RGBA); the diffuse albedo of dielectrics, f0 of metals.
+    - ``metallic`` (default 0), ``roughness`` (perceptual, GGX alpha = roughness^2; default 0.5):
+      in [0, 1]. ``metallic_roughness_texture`` holds roughness in G and metallic in B (glTF).
+    - ``specular``: KHR_materials_specular's strength of the dielectric specular lobe, in [0, 1]:
+      1 (the default) is the usual f0 = 0.04, 0 removes the lobe entirely (a pure Lambert
+      surface). It scales both f0 and f90 of dielectric Fresnel; metals are unaffected.
+    - ``emissive``: emitted radiance in cd/m^2 (nits; W/(sr m^2) in radiometric terms), linear RGB
+      >= 0 (default black), times ``emissive_texture``.
+    - Textures (default None): ``base_color_texture`` and ``emissive_texture`` (sRGB-encoded
+      unless the :class:`Texture` says otherwise), ``metallic_roughness_texture``,
+      ``normal_texture`` (tangent-space, +Y green up) with ``normal_scale`` (any finite number,
+      default 1, scaling the map's x and y), ``occlusion_texture`` with ``occlusion_strength``
+      (in [0, 1], default 1; occlusion only scales environment light, so it has no effect under
+      punctual lights alone, as glTF specifies). A bare array or Pillow image is wrapped in a
+      :class:`Texture` with default sampling.
+    - ``double_sided``: back faces are shaded with flipped normals (True, the default here, so a
+      lone plane is visible from both sides); when False, back faces are culled for camera rays,
+      as glTF specifies (glTF files set it per material; glTF's own default is False). Shadows
+      are cast by every face either way.
+    - ``alpha_mode``: "OPAQUE" (default), "MASK" (cut out where base-colour alpha, times vertex and
+      texture alpha, is below ``alpha_cutoff``, in [0, 1], default 0.5) or "BLEND" (rendered
+      opaque).
+    - ``name``: for messages (default "").
     - ``complex_ior``: optional ``(n, k)``, the complex index of refraction n + ik of a metal,
       each an RGB triple (n > 0, k >= 0), e.g. from refractiveindex.info at 650, 550 and 450 nm.
       The exact Fresnel rung (``pw.BRDF(fresnel="exact")``, ``quality="reference"``) then uses
@@ -85,9 +95,10 @@ class Material(validate.Checked):
 
     @classmethod
     def conductor(cls, n, k, roughness: float = 0.5, **kwargs) -> "Material":
-        """A metal given by its complex IOR n + ik (RGB triples): metallic = 1, base_color = the
-        normal-incidence reflectance ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2) (Born & Wolf) that the
-        approximate Fresnel rungs use, and ``complex_ior`` for the exact one."""
+        """A metal given by its complex IOR n + ik (RGB triples, n > 0, k >= 0): metallic = 1,
+        base_color = the normal-incidence reflectance ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2)
+        (Born & Wolf) that the approximate Fresnel rungs use, and ``complex_ior`` for the exact
+        one; ``roughness`` (default 0.5) and any other field as keywords."""
         n_rgb, k_rgb = _complex_ior((n, k))
         f0 = tuple(((a - 1) ** 2 + b**2) / ((a + 1) ** 2 + b**2) for a, b in zip(n_rgb, k_rgb))
         return cls(base_color=f0, metallic=1.0, roughness=roughness, complex_ior=(n_rgb, k_rgb), **kwargs)

@@ -83,12 +83,16 @@ VERTEX_ATTRIBUTES = (("normals", 3), ("uvs", 2), ("tangents", 4), ("colors", 4))
 class Primitive(validate.Checked):
     """One triangle mesh in world space with one material.
 
-    ``uvs`` use glTF's convention ((0, 0) = top-left of the image). ``normals`` rows of zero
-    length mean "no normal here": those triangles are shaded flat. ``tangents`` are glTF's
-    (xyz, handedness w); when absent and a normal texture needs them, they are generated from UVs.
-    Every field is checked whenever it is set, by the constructor or later: faces index the
-    vertices and each vertex attribute has one row per vertex (so a mesh with another vertex
-    count is a new Primitive).
+    ``positions`` (N, 3) are world units within float32's range; ``faces`` (F, 3), F >= 1, index
+    them (whole numbers in 0..N-1); ``material`` is a :class:`Material`. Optional per-vertex
+    attributes (default None), finite, one row per vertex: ``normals`` (N, 3), whose rows of
+    zero length mean "no normal here" (those triangles are shaded flat) and which need not be
+    unit; ``uvs`` (N, 2) in glTF's convention ((0, 0) = top-left of the image); ``tangents``
+    (N, 4), glTF's (xyz, handedness w), generated from UVs when absent and a normal texture needs
+    them; ``colors`` (N, 4), linear RGBA multiplying the base colour. ``name`` is for messages.
+    Every field is checked whenever it is set, by the constructor or later (InputError for a bad
+    shape or value, InputTypeError for a bad type), so a mesh with another vertex count is a new
+    Primitive. Replace an array rather than change it in place: renders see assignments only.
     """
 
     positions: np.ndarray

@@ -51,9 +51,8 @@ MIN_VERTEX_SHARE = 4096
 # then takes the others' rather than waiting, and the last batch taken, which the other threads
 # wait for at the pass's barrier, is short; at most MAX_BATCH triangles, at least a cluster.
 # (Batches are not the binning's unit, which is the launch, so their number costs only an
-# atomic take each. Chunks of binning, 16 a thread, had been the unit: cycle-counter stamps,
-# 2 threads, 1024², development, showed a launch waiting ~1 ms for the other's last chunk at
-# the end of the first pass, for the happy Buddha and the 327k-triangle icosphere.)
+# atomic take each; fewer, larger batches would leave the launches waiting at the pass's
+# barrier for the last one.)
 BATCHES_PER_THREAD = 64
 MAX_BATCH = 2048
 # Sample-position arrays kept for reuse, process-wide: they depend on the image size, spp and seed
@@ -68,7 +67,7 @@ _QUEUE_PAST_END = 1 << 30
 class _Scratch(threading.local):
     """Per calling thread, the largest scratch array of each kind used so far, reused by later
     frames: the first touch of fresh memory page-faults, and page faults do not scale across
-    threads (at 2048² they took a third of the frame and most of the second core's gain)."""
+    threads (at large sizes they would take much of a frame and most of a second core's gain)."""
 
     def __init__(self):
         self.arrays = {}
@@ -101,9 +100,8 @@ def _replay_launch(recorded: dict, key, kernel, inputs: list):
     that are the very objects it last had (an array's memory never moves) and the plain numbers
     equal to the last ones; a struct may have been changed in place, so structs are always
     packed (cheaply: an instance keeps its fields packed as they are set, see _kernel_struct).
-    Packing every argument anew cost ~0.12 ms a launch (development, when visibility_pipeline took
-    41 separate arguments), a few percent of a 512² call. The record keeps its last inputs (the
-    caller's mesh and buffer arrays among them) alive until the next call."""
+    Packing every argument anew would cost a noticeable share of a small call. The record keeps
+    its last inputs (the caller's mesh and buffer arrays among them) alive until the next call."""
     entry = recorded.get((key, "launch"))
     if entry is None:
         command = wp.launch(kernel, dim=1, device="cpu", inputs=inputs, record_cmd=True)
@@ -164,8 +162,8 @@ _kernels_loaded = False
 
 
 def _load_kernels():
-    # compile or load every kernel once, before pool threads would each try at once (after that
-    # the check alone cost ~40 us of a call with the caches cold from a large frame)
+    # compile or load every kernel once, before pool threads would each try at once (and only
+    # once: even the check that they are loaded costs a call something with cold caches)
     global _kernels_loaded
     if not _kernels_loaded:
         for kernel in KERNELS:
@@ -321,8 +319,8 @@ class _Layout:
     cluster_rect: wp.array
     cluster_nearest: wp.array
     # one block, zeroed before each call, holding binned_count, bad_indices, sync and tile_counts;
-    # and NumPy views of it and of sync, the cheapest way from Python into them (after a large
-    # frame Warp's array methods run with cold caches: ~0.1 ms a call, development)
+    # and NumPy views of it and of sync, the cheapest way from Python into them (Warp's array
+    # methods cost more, above all with the caches cold after a large frame)
     zeroed: wp.array
     zeroed_view: np.ndarray
     sync_view: np.ndarray
@@ -335,8 +333,8 @@ class _Layout:
 def _call_layout(scratch: dict, vertices: int, triangles: int, width: int, height: int, spp: int, threads: int,
                  cluster_count: int) -> _Layout:
     """The _Layout of a call of this shape on the calling thread (``scratch`` its
-    _scratch.arrays), the last one kept for the next call: building it, a few dozen small
-    Python steps, took ~0.1 ms of a call with the caches cold from a large frame (development)."""
+    _scratch.arrays), the last one kept for the next call: building it takes a few dozen small
+    Python steps, a noticeable share of a small call."""
     key = (vertices, triangles, width, height, spp, threads, cluster_count)
     last = scratch.get("layout")
     if last is not None and last[0] == key:
@@ -390,12 +388,10 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
     homogeneously (in float64, from their camera-space vertices; by casting each sample's ray when
     the eye lies in their plane). ``threads`` defaults to every core; the buffer does not depend on
     it. Its launches spin while they wait for each other, yielding their core every few tens of
-    microseconds, so more threads than cores cost little (development measurement at e379479,
-    bunny at 512² on a 2-core AMD EPYC, medians over three runs of interleaved calls: 4.3-4.6,
-    2.7-4.0, 2.5-3.9 and 4.6-6.3 ms on 1, 2, 3 and 8 threads; 24 and 74 ms on 3 and 8 without
-    the yields). ``out``, a buffer of that shape and dtype on the CPU, is filled
-    and returned instead of a new one: reusing it saves the page faults of fresh memory, which
-    take a third of a 2048² frame and do not scale across threads. ``timings``, if a dict,
+    microseconds, so that more threads than cores cost little (a launch waiting for one that is
+    not running gives up its core). ``out``, a buffer of that shape and dtype on the CPU, is
+    filled and returned instead of a new one: reusing it saves the page faults of fresh memory,
+    which do not scale across threads. ``timings``, if a dict,
     receives seconds per part: "samples" (positions, cached), "binning" (clearing, projection,
     small triangles drawn, the others binned and the bins laid out), "raster" (bins filled,
     tiles drawn); the launches then stop between the two, which costs a little.

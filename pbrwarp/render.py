@@ -31,10 +31,10 @@ from pbrwarp.kernels.ibl import EnvironmentData
 from pbrwarp.kernels.render import ROWS_TAKEN, STOP, WORK_SLOTS, render_kernel
 
 # One launch per thread, each taking ROWS_PER_TAKE rows at a time from one shared counter until
-# none are left, so that the threads finish together: with four fixed bands of rows per thread,
-# one thread sat idle for ~7 ms of a 60 ms 1024² frame whose rows cost unevenly (development
-# trial, bench/frames.py's icosphere). Progress is read off the counter; an interrupt sets the
-# stop flag beside it, which the launches check at every pixel (kernels/render.py).
+# none are left, so that the threads finish together even where rows cost unevenly (fixed bands
+# of rows per thread leave the threads with the cheap bands idle). Progress is read off the
+# counter; an interrupt sets the stop flag beside it, which the launches check at every pixel
+# (kernels/render.py).
 ROWS_PER_TAKE = 4
 # Seconds between progress bar updates.
 PROGRESS_INTERVAL = 0.1
@@ -139,36 +139,47 @@ def render(
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
-    ``camera`` defaults to the scene file's first camera, else one framing the whole scene
-    (``Camera.frame(scene, aspect=width / height)``).
-    ``width`` x ``height`` pixels, each at most 65536; ``spp`` samples per pixel, at most 46340,
-    stratified (multi-jittered); spp = 1 samples pixel centres. A frame holds at most 2^31 - 1
-    samples (width * height * spp) and 2^28 - 1 in a row (width * spp), and its buffers (32 bytes
-    a pixel, 16 with ``aovs=False``, plus 16 bytes a sample unless ``visibility="raycast"``) may
-    take at most half the memory the process may use (less under a ``ulimit``): larger requests
-    raise InputError before anything is allocated (docs/limits.md says why).
-    ``threads`` defaults to every core; the image does not depend on it. ``shadows``: True or "rays"
-    traces one shadow ray per light and sample (the reference), through each light's light buffer
-    (pbrwarp.light_buffers, built on first use and kept while geometry and lights stay put) or
-    Warp's BVH where the buffer cannot tell; "map" or a :class:`ShadowMap`
-    looks shadows up in depth maps rasterized from each light (faster, approximate); False
-    renders none. ``background`` is the linear radiance where no surface is
-    hit (``frame.alpha`` records coverage for transparent output); by default the scene's
-    environment where it has one, else black. ``progress``: None shows a bar
-    (if tqdm is installed) for renders longer than about a second, False never. ``aovs=False``
-    skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are then None).
-    ``specialize=False`` runs the kernel with every effect compiled in, and ray-cast primary
-    visibility, instead of the one built for this scene (same image, slower; for comparison).
-    ``quality`` ("fast", "balanced" (the default), "accurate", "reference") picks a preset of BRDF
-    rungs (pbrwarp.brdf.PRESETS);
-    ``brdf`` (:class:`BRDF`) picks each term's model and wins over ``quality``. ``visibility``
-    finds what each camera sample sees: "raycast" (a BVH query per sample), "raster" (a
-    rasterized visibility buffer, then the same ray-triangle test on the triangle it names, so
-    both shade identically where they pick the same triangle; back faces that no camera ray can
-    show, of single-sided meshes and of closed ones seen from outside, are not drawn), or "auto"
-    (the cheaper by a cost model measured in bench/visibility.py). ``ibl`` (:class:`IBL`) picks
-    how the scene's ``environment`` lights it (the ``quality`` preset's rungs otherwise). :func:`explain` says
-    what is simulated.
+    - ``camera``: a :class:`Camera`; by default the scene file's first camera, else one framing
+      the whole scene (``Camera.frame(scene, aspect=width / height)``).
+    - ``width`` x ``height``: the image in pixels (default 800 x 600), each at most 65536.
+    - ``spp``: samples per pixel (default 1: pixel centres), multi-jittered, at most 46340. A
+      frame holds at most 2^31 - 1 samples (width * height * spp) and 2^28 - 1 in a row
+      (width * spp), and its buffers (32 bytes a pixel, 16 with ``aovs=False``, plus 16 bytes a
+      sample where primary visibility is rasterized) at most half the memory the process may use
+      (less under a ``ulimit``). docs/limits.md says why.
+    - ``threads``: pool threads running the launches, 1 to 4 per core (default: one per core);
+      the image does not depend on it.
+    - ``shadows``: True or "rays" (default) traces a shadow ray per light and hit (the reference)
+      through the light's light buffer, or Warp's BVH where the buffer cannot tell; "map" or a
+      :class:`ShadowMap` looks shadows up in depth maps rasterized from each light (faster,
+      approximate); False or None renders none.
+    - ``background``: linear RGB radiance where no surface is hit (``frame.alpha`` records the
+      coverage); by default the scene's environment where it has one, else black.
+    - ``seed``: an integer (default 0, taken modulo 2^31) choosing the random sample positions
+      (spp > 1) and Monte Carlo environment directions; frames rendered with different seeds
+      average to one with more samples.
+    - ``progress``: None or True shows a progress bar (if tqdm is installed) for renders longer
+      than about a second; False never.
+    - ``aovs``: False skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are
+      then None); default True.
+    - ``specialize``: False runs the kernel with every effect compiled in, and ray-cast primary
+      visibility, instead of the one built for this scene (same image, slower; for comparison).
+    - ``quality``: "fast", "balanced" (None, the default), "accurate" or "reference", a preset of
+      BRDF and environment-lighting rungs (pbrwarp.brdf.PRESETS; docs/accuracy.md). ``brdf``
+      (:class:`BRDF`) and ``ibl`` (:class:`IBL`) choose those rungs themselves and win over it.
+    - ``visibility``: how each camera sample finds its surface: "raycast" (a BVH query per
+      sample), "raster" (a rasterized visibility buffer, then the ray caster's own ray-triangle
+      test on the triangle it names, so both shade identically where they pick the same
+      triangle), or "auto" (the default: the cheaper by the cost model bench/visibility.py fits,
+      and ray casting where the buffer would exceed 1 GiB).
+
+    Raises InputTypeError for a scene, camera or option of the wrong type, InputError for a value
+    out of range, a scene without meshes or a frame past a limit (before anything is allocated),
+    ResourceError when the system refuses a thread. A KeyboardInterrupt (Ctrl-C) stops every
+    launch of the render at once and propagates; the next render in the process is unaffected.
+    :func:`explain` says what is simulated; the scene's derived data (uploaded geometry, light
+    buffers, ...) is kept in ``scene.cache`` for the next render, and a ``Scene`` may be rendered
+    from several threads at once.
     """
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
@@ -238,8 +249,11 @@ def render(
 def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
             brdf: BRDF | None = None, visibility: str = "auto", width: int = 800, height: int = 600,
             ibl: IBL | None = None, background=None, **_render_options) -> str:
-    """Which effects :func:`render` with these options simulates for ``scene``, and why each
-    absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow itself ...")."""
+    """The text saying which effects :func:`render` with these options simulates for ``scene``,
+    and why each absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow
+    itself ..."), with the estimated cost of each primary visibility path. Takes render's options
+    (other keywords, like ``camera`` or ``threads``, are accepted and ignored) and raises as
+    render does for bad ones."""
     if not isinstance(scene, Scene):
         raise InputTypeError(f"explain takes a pbrwarp.Scene, got {type(scene).__name__}")
     width, height, spp = validate.render_size(width, height, spp, aovs=bool(aovs),

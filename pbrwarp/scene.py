@@ -31,6 +31,11 @@ _IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".webp", ".gif", ".bmp", ".tga", "
 class Scene:
     """Meshes, materials and lights to render.
 
+    ``primitives`` (list of :class:`Primitive`), ``lights`` (point, directional and spot
+    lights), ``cameras`` (those a file defines; ``render`` uses the first by default) and
+    ``environment`` may be read and changed freely between renders; ``cache`` keeps what renders
+    derived from them. One scene may be rendered from several threads at once.
+
     >>> scene = Scene.load("model.glb")                # or Scene() and add_mesh/add_light
     """
 
@@ -64,8 +69,11 @@ class Scene:
 
     # ------------------------------------------------------------------ building
     def add_mesh(self, mesh, material: Material | None = None, transform=None) -> Primitive:
-        """Add a ``trimesh.Trimesh`` (or a :class:`Primitive`). ``material`` overrides the one
-        trimesh read from the file; ``transform`` is an optional 4x4 world matrix."""
+        """Add a ``trimesh.Trimesh`` (or a :class:`Primitive`) and return the :class:`Primitive`
+        added. ``material`` overrides the one trimesh read from the file (or the primitive's);
+        ``transform`` is an optional 4x4 world matrix (a mirroring one reverses the winding).
+        InputTypeError for another kind of mesh, InputError for a mesh without faces, with NaN or
+        Inf, or a singular transform."""
         if isinstance(mesh, Primitive):
             prim = mesh if material is None else Primitive(
                 mesh.positions, mesh.faces, material, mesh.normals, mesh.uvs, mesh.tangents, mesh.colors, mesh.name)
@@ -77,6 +85,8 @@ class Scene:
         return prim
 
     def add_light(self, light):
+        """Add a :class:`PointLight`, :class:`DirectionalLight` or :class:`SpotLight` and return it
+        (InputTypeError for anything else)."""
         if not isinstance(light, (PointLight, DirectionalLight, SpotLight)):
             raise InputTypeError(
                 f"add_light takes a PointLight, DirectionalLight or SpotLight, got {type(light).__name__}")
@@ -152,7 +162,8 @@ class Scene:
 
     # ------------------------------------------------------------------ queries
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(min corner, max corner) of every mesh in the scene."""
+        """(min corner, max corner), float64 arrays of 3, of every mesh in the scene; InputError
+        for a scene without meshes."""
         if not self.primitives:
             raise InputError("the scene has no meshes")
         los, his = zip(*(p.bounds() for p in self.primitives))
@@ -160,6 +171,7 @@ class Scene:
 
     @property
     def triangle_count(self) -> int:
+        """Triangles of every primitive together."""
         return sum(len(p.faces) for p in self.primitives)
 
 

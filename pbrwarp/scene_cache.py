@@ -36,8 +36,9 @@ slot                                  value (built by)                  key
 A primitive's or texture's revision counts the assignments to its fields (``prim.positions =
 ...``, ``texture.image = ...``), so that setting one rebuilds what was derived from it; an array
 changed in place is not seen (replace it instead). What no key holds (the camera, light colours
-and intensities, material factors) is read anew by every render. A new geometry drops, at once, every slot derived from the old one and the facts of
-primitives no longer in the scene (their keys would no longer match; dropping frees the memory).
+and intensities, material factors) is read anew by every render. A new geometry drops, at once,
+every slot derived from the old one and the facts of primitives no longer in the scene (their
+keys would no longer match; dropping frees the memory).
 The light buffers are built without their interiors' marks; the first render that finds them
 built (a second frame) stores a marked copy in their place (``Cache.improve``).
 

@@ -34,12 +34,15 @@ class ShadowMap:
     """Shadow-map settings, passed as ``pw.render(..., shadows=pw.ShadowMap(...))``
     (``shadows="map"`` uses the defaults).
 
-    - ``resolution``: texels per side of each map (point lights and wide spot lights use six).
-    - ``bias``: the receiver is moved this many texels off its surface along its normal and may
-      lie as many texels behind the stored depth: larger removes acne on steep slopes, smaller
-      keeps contact shadows (peter-panning).
-    - ``pcf``: side of the square of texels averaged by percentage-closer filtering; 1 gives hard,
-      aliased edges.
+    - ``resolution``: texels per side of each map, 16 to 8192 (default 1024); point lights and
+      spot lights wider than 60 degrees (half-angle) use six maps.
+    - ``bias``: the receiver is moved this many texels (at its own depth) off its surface along
+      its normal and may lie as many texels behind the stored depth, >= 0 (default 1.5): larger
+      removes acne on steep slopes, smaller keeps contact shadows (peter-panning).
+    - ``pcf``: side of the square of texels averaged by percentage-closer filtering, 1 to 9
+      (default 3); 1 gives hard, aliased edges.
+
+    A value out of range raises InputError, one of the wrong type InputTypeError.
     """
 
     resolution: int = 1024

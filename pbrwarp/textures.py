@@ -191,12 +191,19 @@ def _image(texture, image):
 class Texture(validate.Checked):
     """An image and the way a material samples it.
 
-    ``image``: numpy array (H, W[, C]) or Pillow image; 8-bit images stay 8-bit in memory and are
-    decoded to linear values as the renderer samples them. ``srgb``: whether the texels are
-    sRGB-encoded; ``None`` lets the material slot decide (colour slots sRGB, data slots linear,
-    as glTF says). ``wrap_s``/``wrap_t``: "repeat", "clamp" or "mirror". ``offset``, ``rotation``
-    (radians) and ``scale`` are KHR_texture_transform's, finite. Every field is checked whenever
-    it is set, by the constructor or later.
+    - ``image``: a NumPy array (H, W), (H, W, 1..4) (grey, grey + alpha, RGB, RGBA) of 8- or
+      16-bit integers or floats (floats taken as they are, finite), or a Pillow image (palette,
+      16-bit and other modes converted). 8-bit images stay 8-bit in memory (4 bytes a texel) and
+      are decoded to linear values as the renderer samples them; others are kept as float32.
+    - ``srgb``: whether the colour channels are sRGB-encoded; None (the default) lets the material
+      slot decide (colour slots sRGB, data slots linear, as glTF says).
+    - ``wrap_s``/``wrap_t``: "repeat" (default), "clamp" or "mirror".
+    - ``offset`` (default (0, 0)), ``rotation`` (radians, default 0) and ``scale`` (default
+      (1, 1)): KHR_texture_transform's, in UV units, finite.
+
+    Every field is checked whenever it is set, by the constructor or later: InputError for a
+    value out of range (an empty image, NaN texels, an unknown wrap mode), InputTypeError for an
+    image that is not an array or Pillow image.
     """
 
     image: object
@@ -231,6 +238,7 @@ class Texture(validate.Checked):
 
     @property
     def shape(self) -> tuple[int, int]:
+        """(height, width) in texels."""
         return self._rgba.shape[:2]
 
     @property

@@ -1,4 +1,4 @@
-"""Float64 NumPy references written from the formulas in the seeds and papers (not from the kernels)."""
+"""Float64 NumPy references written from the formulas of the papers the kernels cite (not from the kernels)."""
 
 import numpy as np
 
@@ -30,7 +30,7 @@ def f_schlick(f0, f90, v_dot_h):
 def brdf(n, v, l, base, metallic, roughness, specular, share=None):
     """Lambert + Cook-Torrance with metallic-roughness and KHR_materials_specular's strength.
     ``share(f0, f90, n.v, n.l, roughness)`` is the diffuse lobe's share of light; None is the
-    seeds' 1 - F(v.h)."""
+    1 - F(v.h)."""
     h = normalize(v + l)
     nl = np.sum(n * l, -1)
     nv = np.sum(n * v, -1)

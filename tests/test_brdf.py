@@ -16,7 +16,7 @@ N = 4096
 default_brdf = kb.brdf_for(True, True)
 
 
-seeds_brdf = kb.brdf_for(True, True, coupling="fresnel")
+fresnel_weighted_brdf = kb.brdf_for(True, True, coupling="fresnel")
 
 
 @wp.kernel(enable_backward=False)
@@ -25,7 +25,7 @@ def eval_terms(
     base: wp.array(dtype=wp.vec3), metallic: wp.array(dtype=float), roughness: wp.array(dtype=float),
     specular: wp.array(dtype=float), n_dot_h: wp.array(dtype=float), sin_sq: wp.array(dtype=float),
     out_d: wp.array(dtype=float), out_g: wp.array(dtype=float), out_f: wp.array(dtype=wp.vec3),
-    out_brdf: wp.array(dtype=wp.vec3), out_seeds: wp.array(dtype=wp.vec3),
+    out_brdf: wp.array(dtype=wp.vec3), out_fresnel_weighted: wp.array(dtype=wp.vec3),
 ):
     i = wp.tid()
     h = wp.normalize(v[i] + l[i])
@@ -35,7 +35,7 @@ def eval_terms(
     f0 = kb.specular_f0(base[i], metallic[i], specular[i])
     out_f[i] = kb.F_Schlick(f0, kb.specular_f90(metallic[i], specular[i]), wp.dot(v[i], h))
     out_brdf[i] = default_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
-    out_seeds[i] = seeds_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
+    out_fresnel_weighted[i] = fresnel_weighted_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
 
 
 def random_hemisphere(rng, n, count, min_cos):
@@ -122,8 +122,8 @@ def test_f_schlick_matches_reference(evaluated):
     assert rel_err(f, want) <= 1e-5
 
 
-def test_whole_seeds_brdf_matches_reference(evaluated):
-    """The seeds' model exactly: Lambert weighted by 1 - F(v.h)."""
+def test_whole_fresnel_weighted_brdf_matches_reference(evaluated):
+    """The real-time model of Karis 2013 exactly, its Lambert lobe weighted by 1 - F(v.h)."""
     x, (_, _, _, _, f) = evaluated
     want = ref.brdf(x["n"], x["v"], x["l"], x["base"], x["metallic"], x["roughness"], x["specular"])
     assert rel_err(f, want) <= 1e-5
@@ -157,7 +157,7 @@ def table_share(tables):
 
 
 def test_whole_brdf_matches_reference(evaluated):
-    """The default model: the seeds' terms with the albedo coupling of the diffuse lobe."""
+    """The default model: Karis 2013's terms with the albedo coupling of the diffuse lobe."""
     from pbrwarp.kernels.energy import albedo_tables
 
     x, (_, _, _, f, _) = evaluated

@@ -237,7 +237,8 @@ def test_legacy_models_follow_seed_002(model):
 
 
 def test_normalized_phong_lobe_reflects_all_light_head_on():
-    """seed 002: with the (a + 2) / (2 pi) factor the Phong BRDF's albedo under light along n is 1."""
+    """Lafortune & Willems 1994: with the (a + 2) / (2 pi) factor the Phong BRDF's albedo under
+    light along n is 1."""
 
     @wp.kernel(enable_backward=False)
     def lobe(cos: wp.array(dtype=float), power: float, out: wp.array(dtype=float)):
@@ -295,7 +296,7 @@ def test_every_rung_combination_renders_finite(rungs):
     assert f"{coupling} coupling" in text
 
 
-def test_default_brdf_is_the_seeds_terms_with_the_energy_conserving_coupling():
+def test_default_brdf_is_karis_terms_with_the_energy_conserving_coupling():
     assert pw.BRDF() == pw.BRDF(diffuse="lambert", distribution="ggx", geometry="schlick_ggx", fresnel="schlick", energy="single",
                                 coupling="albedo")
 

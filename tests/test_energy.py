@@ -160,11 +160,13 @@ def test_the_albedo_coupling_normalization_given_once_is_the_brdf_itself():
     assert kb.albedo_coupled_brdf_for(False, True) is None and kb.albedo_coupled_brdf_for(True, False) is None
 
 
-def test_seeds_fresnel_coupling_creates_energy_at_grazing_views():
-    """Why the default is not the seeds' 1 - F(v.h) weight: it ignores the light the specular lobe
-    took at other half vectors, so smooth white dielectrics at grazing views exceed 1."""
-    seeds = white_evaluator(kb.brdf_for(True, True, coupling="fresnel"))
-    est, err = directional_albedo(0.1, 0.0, 0.1, kernel=seeds)
+def test_diffuse_weight_one_minus_fresnel_creates_energy_at_grazing_views():
+    """Why the default coupling is not the diffuse weight 1 - F(v.h) with F Schlick's Fresnel of
+    the f0 mix (the kD = 1 - kS of LearnOpenGL's PBR tutorial, after Karis 2013): it ignores the
+    light the specular lobe took at other half vectors, so smooth white dielectrics seen at grazing
+    views reflect more than they receive."""
+    fresnel_weighted = white_evaluator(kb.brdf_for(True, True, coupling="fresnel"))
+    est, err = directional_albedo(0.1, 0.0, 0.1, kernel=fresnel_weighted)
     assert est > 1.0 + 4 * err + 1e-3
 
 

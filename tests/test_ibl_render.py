@@ -90,9 +90,9 @@ def test_split_sum_against_monte_carlo_and_monte_carlo_convergence():
         assert errors[0] > errors[1] > errors[2]
         assert 1.4 < errors[0] / errors[1] < 3.0 and 1.2 < errors[1] / errors[2] < 3.0, errors
         # the split sum assumes n = v = r when prefiltering: exact enough head-on, it overestimates
-        # grazing reflections (the sphere's rim), most for smooth lobes (README: 26% and 5% here)
+        # grazing reflections (the sphere's rim), most for smooth lobes (bench/results/costs.md)
         split_sum = render_checked(scene, CAMERA, size=(24, 24))
-        # (head-on, the split sum differs by its geometry term: k = alpha^2 / 2 for IBL (seed 001)
+        # (head-on, the split sum differs by its geometry term: k = alpha^2 / 2 for IBL (Karis 2013)
         # where the BRDF the reference integrates has k = (r + 1)^2 / 8)
         np.testing.assert_allclose(split_sum.rgb[11:13, 11:13], best.rgb[11:13, 11:13], rtol=0.05)
         assert error(split_sum) < 0.35, (roughness, error(split_sum))

@@ -19,7 +19,7 @@ from pbrwarp.kernels.robust import MIN_COSINE
 
 import reference as ref
 
-# The minimum roughness implied by the seeds' MIN_ROUGHNESS: alpha^2 = roughness^4 >= 1e-7.
+# The minimum roughness implied by kernels/microfacet.py's floor alpha^2 = roughness^4 >= 1e-7.
 MIN_ROUGHNESS = 1e-7 ** 0.25
 ROUGHNESS_GRID = [0.0, 1e-8, 1e-4, MIN_ROUGHNESS, 0.045, 0.5, 1.0]
 COSINE_GRID = [1.0, 0.5, 1e-3, 1e-6, 0.0, -1e-3]
@@ -152,7 +152,7 @@ def term_errors(v, l, r, m, b, s):
         "F_Schlick": ref.f_schlick((1 - mm) * 0.04 * ss + mm * x["base"], (1 - mm) * ss + mm, np.sum(x["v"] * h, -1)),
         "BRDF": ref.brdf(np.array([0.0, 0.0, 1.0]), x["v"], x["l"], x["base"], x["metallic"], x["roughness"], x["specular"],
                          table_share(albedo_tables("ggx", "schlick_ggx", "schlick"))),
-        "BRDF, seeds' 1 - F coupling": ref.brdf(np.array([0.0, 0.0, 1.0]), x["v"], x["l"], x["base"], x["metallic"],
+        "BRDF, 1 - F coupling": ref.brdf(np.array([0.0, 0.0, 1.0]), x["v"], x["l"], x["base"], x["metallic"],
                                                  x["roughness"], x["specular"]),
     }
     table = {}
@@ -183,6 +183,6 @@ def test_error_table_on_the_hard_grid():
     # (1 - v.h)^5 turns into 5 * 2e-7 / F, F >= 0.04 where it is not zero: 2.5e-5. The whole
     # BRDF adds that half vector's ~1e-7 rad error in D, up to 2e-7 / alpha: 6e-4 at the
     # smallest alpha (3.2e-4) of the grid. The bounds are those, with about a factor 2 to spare.
-    bounds = {"D_GGX": 4e-6, "V_SmithSchlickGGX": 2e-6, "F_Schlick": 5e-5, "BRDF": 1.2e-3, "BRDF, seeds' 1 - F coupling": 1.2e-3}
+    bounds = {"D_GGX": 4e-6, "V_SmithSchlickGGX": 2e-6, "F_Schlick": 5e-5, "BRDF": 1.2e-3, "BRDF, 1 - F coupling": 1.2e-3}
     for name, (worst, _) in table.items():
         assert worst <= bounds[name], (name, worst)

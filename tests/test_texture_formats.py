@@ -314,8 +314,8 @@ def test_colour_slots_decode_srgb_and_data_slots_do_not():
 
 
 def head_on_radiance(metallic, roughness=1.0, specular=0.0):
-    """Radiance / E of a white surface seen and lit head-on (n = v = l = h), from the seeds' BRDF
-    (rendered with coupling="fresnel"): f0 = mix(0.04 specular, 1, m), F = f0 at v.h = 1; diffuse (1 - F)(1 - m) / pi;
+    """Radiance / E of a white surface seen and lit head-on (n = v = l = h), from the BRDF of
+    Karis 2013 (rendered with coupling="fresnel"): f0 = mix(0.04 specular, 1, m), F = f0 at v.h = 1; diffuse (1 - F)(1 - m) / pi;
     GGX D = 1 / (pi alpha^2) at n.h = 1 with alpha = roughness^2; Smith G = 1 at n.v = n.l = 1."""
     f0 = 0.04 * specular * (1 - metallic) + metallic
     alpha2 = max(roughness**4, 1e-7)
