@@ -5,6 +5,7 @@ taking rows from one shared counter."""
 from __future__ import annotations
 
 import functools
+import inspect
 import math
 import threading
 
@@ -252,10 +253,14 @@ def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality
     """The text saying which effects :func:`render` with these options simulates for ``scene``,
     and why each absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow
     itself ..."), with the estimated cost of each primary visibility path. Takes render's options
-    (other keywords, like ``camera`` or ``threads``, are accepted and ignored) and raises as
-    render does for bad ones."""
+    (those that decide nothing it says, like ``camera`` or ``threads``, are accepted and ignored)
+    and raises as render does for bad ones, and for a keyword render does not take."""
     if not isinstance(scene, Scene):
         raise InputTypeError(f"explain takes a pbrwarp.Scene, got {type(scene).__name__}")
+    unknown = sorted(set(_render_options) - set(inspect.signature(render).parameters))
+    if unknown:
+        raise InputTypeError(f"explain got {', '.join(map(repr, unknown))}, which render does not take "
+                             f"(render's options: {', '.join(list(inspect.signature(render).parameters)[1:])})")
     width, height, spp = validate.render_size(width, height, spp, aovs=bool(aovs),
                                               rasterized=bool(_render_options.get("specialize", True))
                                               and visibility != "raycast")

@@ -132,7 +132,9 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
     intensities renders no new maps."""
     masked = [p.material for p in scene.primitives if p.material.alpha_mode == "MASK"]
     # what decides the cut-outs the maps see through (a texture by identity, kept alive by the key)
-    masks = tuple((m.alpha_cutoff, m.base_color[3], m.base_color_texture) for m in masked)
+    # a cut-out's texture by identity and revision: an image set anew gives other cut-outs
+    masks = tuple((m.alpha_cutoff, m.base_color[3], None if m.base_color_texture is None
+                   else validate.revision(m.base_color_texture)) for m in masked)
     key = (gpu.geometry, tuple(light_geometry(light) for light in scene.lights), settings, masks)
     return scene.cache.get("shadow maps", key, lambda: _render_maps(scene, gpu, settings, masked, threads))
 

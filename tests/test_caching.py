@@ -117,3 +117,25 @@ def test_assigning_a_primitives_or_textures_field_rebuilds_what_depends_on_it():
     third = pw.render(scene, camera, width=32, height=32, progress=False)
     assert third.rgb[third.alpha > 0].max() == 0.0 < second.rgb[second.alpha > 0].max()
     assert np.array_equal(pw.Camera.frame(scene).eye, pw.Camera.frame(scene).eye)
+
+
+def test_a_cut_out_texture_set_anew_rerenders_the_shadow_maps():
+    """Shadow maps keep the alpha-masked materials' cut-outs; a base-colour image set anew on a
+    masked material's texture (same Texture object) gives maps with the new cut-outs."""
+    import trimesh
+
+    scene = pw.Scene()
+    texture = pw.Texture(np.full((2, 2, 4), 255, dtype=np.uint8))  # opaque: casts a shadow
+    quad = pw.Primitive(np.array([[-1, 1, -1], [1, 1, -1], [1, 1, 1], [-1, 1, 1]], float),
+                        np.array([[0, 2, 1], [0, 3, 2]]),
+                        pw.Material(base_color_texture=texture, alpha_mode="MASK", alpha_cutoff=0.5),
+                        uvs=np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float))
+    scene.add_mesh(quad)
+    floor = trimesh.creation.box(extents=(4, 0.1, 4))
+    scene.add_mesh(floor, pw.Material(), transform=np.diag([1.0, 1.0, 1.0, 1.0]))
+    scene.add_light(pw.DirectionalLight(direction=(0, -1, 0), intensity=3.0))
+    camera = pw.Camera.look_at((0, 0.5, 0), (0, -1, 0), up=(0, 0, 1), fov_y=40.0)  # under the quad
+    shadowed = pw.render(scene, camera, width=16, height=16, shadows="map", progress=False)
+    texture.image = np.zeros((2, 2, 4), dtype=np.uint8)  # transparent: cut out entirely
+    lit = pw.render(scene, camera, width=16, height=16, shadows="map", progress=False)
+    assert shadowed.rgb.max() < 0.01 * lit.rgb.max()

@@ -155,3 +155,13 @@ def test_transparent_png_keeps_coverage(tmp_path):
     assert rgba.shape == (16, 16, 4)
     assert rgba[0, 0, 3] == 0 and rgba[8, 8, 3] == 255
     assert rgba[8, 8, 0] == rgba[8, 8, 1]  # the red background does not bleed into the surface
+
+
+def test_explain_refuses_a_keyword_render_does_not_take():
+    import trimesh
+
+    scene = pw.Scene()
+    scene.add_mesh(trimesh.creation.box())
+    with pytest.raises(pw.InputTypeError, match="'sp', which render does not take"):
+        pw.explain(scene, sp=4)
+    assert "simulated" in pw.explain(scene, camera=None, threads=1, progress=False, seed=3)
