@@ -180,19 +180,12 @@ def signal_when(program: str, ready: str, signum, folder: Path, expect_hidden_fi
 
 
 @pytest.mark.parametrize("name", list(SIGNALS))
-def test_signal_while_saving_leaves_no_file(name, tmp_path):
+@pytest.mark.parametrize("phase", ["saving", "rendering"])
+def test_signal_leaves_no_file(name, phase, tmp_path):
     signum, status, message = SIGNALS[name]
-    program = cli_program(SLOW_SAVE, ["demo", "-o", str(tmp_path / "demo.png"), "--size", "32x18"])
-    code, out, err = signal_when(program, "saving", signum, tmp_path, expect_hidden_file=True)
-    assert (code, err) == (status, message + "\n"), err
-    assert out == "" and leftovers(tmp_path) == []
-
-
-@pytest.mark.parametrize("name", list(SIGNALS))
-def test_signal_while_rendering_leaves_no_file(name, tmp_path):
-    signum, status, message = SIGNALS[name]
-    program = cli_program(SLOW_RENDER, ["demo", "-o", str(tmp_path / "demo.png"), "--size", "32x18"])
-    code, out, err = signal_when(program, "rendering", signum, tmp_path, expect_hidden_file=False)
+    slow = SLOW_SAVE if phase == "saving" else SLOW_RENDER
+    program = cli_program(slow, ["demo", "-o", str(tmp_path / "demo.png"), "--size", "32x18"])
+    code, out, err = signal_when(program, phase, signum, tmp_path, expect_hidden_file=phase == "saving")
     assert (code, err) == (status, message + "\n"), err
     assert out == "" and leftovers(tmp_path) == []
 

@@ -381,18 +381,21 @@ def test_node_dag_with_exponentially_many_paths_is_refused_at_once(tmp_path):
     assert_refused_small(outcome, "is reached twice, from node", "one parent per node")
 
 
-def test_chain_of_50000_nodes_is_refused_at_the_depth_limit(tmp_path):
-    depth = 50000
+def chain_glb(tmp_path, depth):
+    """A .glb whose nodes form one chain ``depth`` levels deep, each 1 mm above its parent."""
     nodes = [{"children": [i + 1], "translation": [0, 0, 1e-3]} for i in range(depth - 1)] + [{"leaf": True}]
-    path = graph_glb(tmp_path / "chain.glb", nodes, [0])
+    return graph_glb(tmp_path / "chain.glb", nodes, [0])
+
+
+def test_chain_of_50000_nodes_is_refused_at_the_depth_limit(tmp_path):
+    path = chain_glb(tmp_path, depth=50000)
     outcome = load_in_child(path, timeout_s=60)
     assert_refused_small(outcome, "node 1024 is 1025 levels deep", "LoadLimits.max_node_depth")
 
 
 def test_deep_chain_within_a_raised_depth_limit_loads_with_its_world_matrix(tmp_path):
     depth = 3000
-    nodes = [{"children": [i + 1], "translation": [0, 0, 1e-3]} for i in range(depth - 1)] + [{"leaf": True}]
-    path = graph_glb(tmp_path / "chain.glb", nodes, [0])
+    path = chain_glb(tmp_path, depth)
     with pytest.raises(pw.AssetFormatError, match="max_node_depth"):
         load_gltf(path)
     prim, = load_gltf(path, limits=pw.LoadLimits(max_node_depth=depth)).primitives
