@@ -1,6 +1,6 @@
 """Primary visibility: the rasterized visibility buffer vs Warp ray casting vs Open3D (Embree).
 
-    python bench/visibility.py [--repeats 5] [--quick]
+    python bench/visibility.py [--repeats 5] [--quick] [--framing hull|sphere]
 
 Samples per second (one per pixel, every pixel counted, hit or not) of
 - raster: pbrwarp.raster.visibility_buffer, whole frame (projection, binning, rasterization;
@@ -18,7 +18,11 @@ terrain (a 1000 x 1000 height field seen at a slant) at 1024². Also the
 raster's time split (binning vs rasterization) and least-squares cost models, time = a triangles
 + b samples for the raster and c samples log2(triangles) for the ray cast, whose constants
 pbrwarp/raster.py keeps. Medians of --repeats runs after a warm-up.
-Writes bench/results/visibility.{md,json}.
+The camera fits the mesh's convex hull (Camera.frame); with --framing sphere it fits the mesh's
+bounding sphere instead (1.1 times its radius inside the 45 degree field of view), which leaves
+the mesh smaller on screen: the view results recorded before Camera.frame fitted the hull used,
+for comparing code across that change.
+Writes bench/results/visibility.{md,json} (visibility_sphere.{md,json} with --framing sphere).
 """
 
 from __future__ import annotations
@@ -91,11 +95,23 @@ def on_core(core, fn):
         os.sched_setaffinity(0, allowed)
 
 
-def bench_case(label, mesh, size, repeats, threads_all):
+def sphere_framed(scene, direction, fov_y=45.0, margin=1.1):
+    """A camera looking at the scene's bounding sphere (of its bounding box) from ``direction``,
+    the sphere ``margin`` times its radius inside the vertical field of view."""
+    lo, hi = scene.bounds()
+    centre = 0.5 * (lo + hi)
+    radius = 0.5 * float(np.linalg.norm(hi - lo))
+    d = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    distance = margin * radius / math.sin(math.radians(fov_y) / 2.0)
+    return pw.Camera.look_at(centre + d * distance, centre, fov_y=fov_y)
+
+
+def bench_case(label, mesh, size, repeats, threads_all, framing="hull"):
     scene = pw.Scene()
     scene.add_mesh(mesh, pw.Material())
     geometry = upload(scene)._keep[0]
-    camera = pw.Camera.frame(scene, direction=(0.3, 0.4, 1.0))
+    direction = (0.3, 0.4, 1.0)
+    camera = pw.Camera.frame(scene, direction=direction) if framing == "hull" else sphere_framed(scene, direction)
     cam = _camera_data(camera, size, size)
     samples = size * size
     triangles = len(mesh.faces)
@@ -349,12 +365,14 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--quick", action="store_true", help="one small case, for checking the script")
+    ap.add_argument("--framing", choices=("hull", "sphere"), default="hull",
+                    help="fit the camera to the mesh's convex hull (Camera.frame) or its bounding sphere")
     args = ap.parse_args(argv)
     wp.config.log_level = wp.LOG_WARNING
     threads_all = os.cpu_count() or 1
     rows = []
     for label, mesh, size in cases(args.quick):
-        rows.append(bench_case(label, mesh, size, args.repeats, threads_all))
+        rows.append(bench_case(label, mesh, size, args.repeats, threads_all, args.framing))
         print(rows[-1], file=sys.stderr)
     rows.sort(key=lambda r: (r["mesh"] != "icosphere" or r["triangles"] != 81920, r["mesh"], r["triangles"], r["size"]))
     model = fit_cost_models(rows, threads_all) if len(rows) > 2 else {}
@@ -362,7 +380,8 @@ def main(argv=None):
     if args.quick:
         print(rows)
         return
-    write_results("visibility", command, {"rows": rows, "cost_model": model}, markdown(rows, model, threads_all))
+    name = "visibility" if args.framing == "hull" else "visibility_sphere"
+    write_results(name, command, {"rows": rows, "cost_model": model}, markdown(rows, model, threads_all))
 
 
 if __name__ == "__main__":
