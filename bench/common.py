@@ -143,6 +143,8 @@ def command_line(parser, args) -> str:
         value = getattr(args, action.dest)
         if value == action.default:
             continue
+        if isinstance(value, (list, tuple)):
+            value = " ".join(str(v) for v in value)
         parts.append(action.option_strings[0] if value is True else f"{action.option_strings[0]} {value}")
     return " ".join(parts)
 
