@@ -27,8 +27,8 @@ def test_every_asset_is_named_in_its_sources(folder):
     sources = (folder / "SOURCES.md").read_text(encoding="utf-8")
     for path in data_files(folder):
         parts = path.relative_to(folder).parts
-        if parts[0] == "gltf":
-            assert parts[1] == "LICENSES" or (folder / "gltf" / parts[1] / "LICENSE.md").is_file(), path
+        if parts[0] in ("gltf", "gltf-ext"):
+            assert parts[1] == "LICENSES" or (folder / parts[0] / parts[1] / "LICENSE.md").is_file(), path
             assert parts[1] in sources, path
         else:
             assert path.name in sources, path

@@ -53,6 +53,17 @@ GLTF = _models(IN_REPO) + (_models(EXTENDED) if EXTENDED else [])
 MESHES = _meshes(_IN_REPO_MESH_FOLDERS) + (_meshes([EXTENDED / "meshes"]) if EXTENDED else [])
 
 
+def board(name: str) -> Path:
+    """The model file of the Khronos test board ``name`` (``gltf-ext/<name>/glTF*/``): from
+    PBRWARP_TEST_ASSETS when it holds the board, else this folder's copy (the small boards are
+    kept here whole)."""
+    for root in ([EXTENDED] if EXTENDED else []) + [IN_REPO]:
+        found = sorted((root / "gltf-ext" / name).glob("glTF*/*.gl[tb]*"))
+        if found:
+            return found[0]
+    raise FileNotFoundError(f"no test board {name!r} in {IN_REPO / 'gltf-ext'}")
+
+
 def asset_id(path: Path) -> str:
     """A test id for an asset file: its name, prefixed "shared:" when it comes from PBRWARP_TEST_ASSETS."""
     return f"shared:{path.name}" if EXTENDED and EXTENDED in path.parents else path.name

@@ -2,7 +2,8 @@
 
     python tests/assets/make_assets.py ../shared/assets
 
-Copies the small files unchanged; re-encodes the textures of the four models whose 1024² and 2048²
+Copies the small files unchanged (among them the small Khronos test boards of ``gltf-ext/``, whole:
+model, README and licence); re-encodes the textures of the four models whose 1024² and 2048²
 maps make up nearly all of their size at a smaller side (an area average: Pillow's box filter),
 leaving their geometry, tangents, materials and samplers byte for byte; and shrinks three 1024 x 512
 HDR environments to 256 x 128 (one to 512 x 256) by solid-angle-weighted 2 x 2 averages
@@ -47,6 +48,10 @@ COPIED = [
 MODELS = ["BoxTextured", "Duck", "MetalRoughSpheresNoTextures", "NegativeScaleTest", "NormalTangentMirrorTest",
           "NormalTangentTest", "OrientationTest", "Suzanne", "TextureCoordinateTest", "TextureEncodingTest",
           "TextureSettingsTest", "TwoSidedPlane", "WaterBottle"]
+# Khronos test boards (one feature each), copied whole: every file of their model folders, their
+# README (what a correct render shows) and LICENSE.md.
+BOARDS = ["AnimatedMorphCube", "Box", "EmissiveStrengthTest", "MeshPrimitiveModes", "MorphPrimitivesTest",
+          "MultiUVTest", "SimpleSkin", "SimpleSparseAccessor", "SpecularTest", "UnlitTest"]
 # Binary models whose embedded images are re-encoded, with the largest side kept: the normal maps
 # of the two normal-mapping tests at a quarter, so each bump still spans many texels in a test view.
 GLB_TEXTURES = {"gltf/NormalTangentMirrorTest/glTF-Binary/NormalTangentMirrorTest.glb": 512,
@@ -109,13 +114,17 @@ def main(source: Path):
     from pbrwarp.environment import Environment
     from pbrwarp.kernels.equirect import downsample
 
-    for folder in ("gltf", "hdr", "meshes"):
+    for folder in ("gltf", "gltf-ext", "hdr", "meshes"):
         shutil.rmtree(HERE / folder, ignore_errors=True)
     made = {}
     for relative in COPIED:
         made[relative] = (source / relative).read_bytes()
     for model in MODELS:
         made[f"gltf/{model}/LICENSE.md"] = (source / "gltf" / model / "LICENSE.md").read_bytes()
+    for board in BOARDS:
+        folder = source / "gltf-ext" / board
+        for path in sorted(folder.glob("glTF*/*")) + [folder / "README.md", folder / "LICENSE.md"]:
+            made[str(path.relative_to(source))] = path.read_bytes()
     for relative, side in GLB_TEXTURES.items():
         made[relative] = glb_with_shrunk_images((source / relative).read_bytes(), side)
     for relative, side in PNG_TEXTURES.items():
