@@ -32,18 +32,21 @@ default_brdf = kb.brdf_for(True, True)
 @wp.kernel(enable_backward=False)
 def eval_brdf(n: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), l: wp.array(dtype=wp.vec3),
               base: wp.array(dtype=wp.vec3), metallic: wp.array(dtype=float), roughness: wp.array(dtype=float),
-              specular: wp.array(dtype=float), out: wp.array(dtype=wp.vec3)):
+              specular: wp.array(dtype=float), f0_dielectric: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    out[i] = default_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
+    out[i] = default_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i], wp.vec3(0.0),
+                          wp.vec3(0.0), f0_dielectric[i])
 
 
-def brdf(n, v, l, base, metallic, roughness, specular):
-    """Evaluate the kernel's BRDF on numpy batches (one launch)."""
+def brdf(n, v, l, base, metallic, roughness, specular, f0_dielectric=0.04):
+    """Evaluate the kernel's BRDF on numpy batches (one launch); ``f0_dielectric`` is
+    ((ior - 1) / (ior + 1))^2 times the specular colour."""
     count = len(v)
     vec = lambda a: wp.array(np.broadcast_to(np.asarray(a, np.float32), (count, 3)).copy(), dtype=wp.vec3)
     sca = lambda a: wp.array(np.broadcast_to(np.asarray(a, np.float32), (count,)).copy(), dtype=float)
     out = wp.zeros(count, dtype=wp.vec3)
-    wp.launch(eval_brdf, dim=count, inputs=[vec(n), vec(v), vec(l), vec(base), sca(metallic), sca(roughness), sca(specular), out])
+    wp.launch(eval_brdf, dim=count, inputs=[vec(n), vec(v), vec(l), vec(base), sca(metallic), sca(roughness), sca(specular),
+                                            vec(f0_dielectric), out])
     return out.numpy().astype(np.float64)
 
 
@@ -71,6 +74,20 @@ def test_adversarial_grid_is_finite_non_negative_and_bounded():
     assert f.max() <= peak
     # light below the surface contributes nothing
     assert np.all(f[l[:, 2] <= 0.0] == 0.0)
+
+
+@pytest.mark.parametrize("f0_dielectric", [0.0, 1.0, 3.4e38], ids=["ior 1", "ior 0 (infinite)", "huge specular colour"])
+def test_extreme_ior_and_specular_colour_on_the_adversarial_grid(f0_dielectric):
+    """An IOR of 1 (no dielectric f0), KHR_materials_ior's 0 (f0 = 1) and the largest specular
+    colour float32 holds (clamped to f0 = 1, so exactly the BRDF of f0 = 1): finite,
+    non-negative and within the bound of the default's grid."""
+    v, l, r, m, b, s = adversarial_grid()
+    base = np.repeat(b[:, None], 3, 1)
+    f = brdf((0, 0, 1), v, l, base, m, r, s, f0_dielectric)
+    assert np.all(np.isfinite(f)) and np.all(f >= 0.0)
+    assert f.max() <= 1.0 / (math.pi * 1e-7) * 8.0 * 8.0 / (4.0 * MIN_COSINE)
+    if f0_dielectric > 1.0:
+        assert np.array_equal(f, brdf((0, 0, 1), v, l, base, m, r, s, 1.0))
 
 
 @pytest.mark.parametrize("roughness", [0.0, 1e-8, 1e-4])
