@@ -60,3 +60,22 @@ def test_the_f0_mix_is_a_named_rung_and_explained():
     assert "f0 mixed by metallic" in pw.explain(scene, brdf=pw.BRDF(metallic_mix="f0"))
     with pytest.raises(pw.InputError, match="metallic_mix"):
         pw.BRDF(metallic_mix="average")
+
+
+@pytest.mark.parametrize("material", [dict(ior=0.0), dict(specular_color=(50.0, 50.0, 50.0)),
+                                      dict(ior=2.4, specular_color=(3.0, 1.0, 0.2)), dict(ior=1.0)],
+                         ids=["ior 0", "colour 50", "tinted diamond", "ior 1"])
+@pytest.mark.parametrize("metallic", [0.0, 0.5])
+def test_white_furnace_under_a_uniform_environment(material, metallic):
+    """A white sphere under a uniform white environment of radiance 1 reflects its directional
+    albedo, which the split sum's glTF mix keeps at most 1 for any IOR and specular colour (the
+    dielectric's f0 clamped to 1, its diffuse lobe given what the layer's largest channel leaves)."""
+    scene = pw.Scene()
+    scene.add_mesh(trimesh.creation.icosphere(subdivisions=3),
+                   pw.Material(base_color=(1, 1, 1), metallic=metallic, roughness=0.5, **material))
+    scene.environment = pw.Environment.uniform((1, 1, 1))
+    frame = render_checked(scene, head_on_camera(), size=(24, 24), background=(0, 0, 0))
+    covered = frame.alpha > 0
+    assert covered.sum() > 100
+    assert frame.rgb[covered].max() <= 1.0 + 1e-3
+    assert frame.rgb[covered].min() > 0.5  # and it reflects most of it: white
