@@ -460,7 +460,7 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
     @wp.func
     def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
              specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0),
-             f0_dielectric: wp.vec3 = wp.vec3(0.04)) -> wp.vec3:
+             f0_dielectric: wp.vec3 = wp.vec3(DIELECTRIC_F0)) -> wp.vec3:
         if wp.dot(n, l) <= 0.0:
             return wp.vec3(0.0)  # as brdf_scaled does, but before the scale's table lookup
         return brdf_scaled(n, v, l, base_color, metallic, roughness, specular, eta, kappa, f0_dielectric,
@@ -476,7 +476,7 @@ def legacy_brdf(diffuse_lobe: bool, specular_lobe: bool, model: str):
     @wp.func
     def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
              specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0),
-             f0_dielectric: wp.vec3 = wp.vec3(0.04)) -> wp.vec3:
+             f0_dielectric: wp.vec3 = wp.vec3(DIELECTRIC_F0)) -> wp.vec3:
         n_dot_l = wp.dot(n, l)
         if n_dot_l <= 0.0:
             return wp.vec3(0.0)
