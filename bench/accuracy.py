@@ -48,6 +48,7 @@ FAMILY_RUNGS = {
     "energy": ["single", "multiscatter"],
     "coupling": ["albedo", "fresnel", "none"],
     "model": ["microfacet", "phong", "blinn_phong"],
+    "metallic_mix": ["gltf", "f0"],
 }
 
 
@@ -294,7 +295,7 @@ def plot(rows, path):
         return
     colours = {"preset": "black", "diffuse": "tab:green", "distribution": "tab:purple", "geometry": "tab:blue",
                "fresnel": "tab:orange", "energy": "tab:olive", "coupling": "tab:cyan", "model": "tab:pink",
-               "sampling": "tab:red", "shadows": "tab:brown", "ibl": "tab:gray"}
+               "metallic_mix": "gold", "sampling": "tab:red", "shadows": "tab:brown", "ibl": "tab:gray"}
     floor = 1e-4  # the reference itself (error 0) sits on the floor of the log axis
     fig, axes = plt.subplots(1, 3, figsize=(17, 5), dpi=110)
     panels = ((axes[0], [r for r in rows if r["ns_per_eval"] is not None], "ns_per_eval",

@@ -6,12 +6,12 @@ import functools
 
 import warp as wp
 
-from .brdf import specular_f0, specular_f90
+from .brdf import dielectric_specular_f0, max_channel, specular_f90
 from .dfg import dfg_lookup
 from .direction_sampling import (orthonormal_basis, pdf_cosine_hemisphere, pdf_ggx_vndf_reflection,
                                  sample_cosine_hemisphere, sample_ggx_vndf)
 from .ibl import (EnvironmentData, F_SchlickRoughness, environment_irradiance, environment_radiance,
-                  prefiltered_radiance, split_sum_specular)
+                  prefiltered_radiance)
 from .microfacet import D_GGX, PI, alpha_from_roughness
 from .robust import MIN_COSINE, RAY_FAR, offset_ray_origin
 from .scene_data import SceneData
@@ -25,46 +25,63 @@ ENVIRONMENT_STREAM = wp.constant(1 << 24)
 
 @functools.cache
 def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multiscatter: bool, coupled: bool, brdf,
-                occluded):
+                occluded, gltf_mix: bool = True):
     """ambient(scene, env, dfg, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
-    kappa, seed, stream) -> radiance reflected towards v of the environment's light (unoccluded; the caller
-    applies the occlusion texture). ``brdf`` is the render kernel's own BRDF, which the Monte Carlo
-    rung integrates; ``multiscatter`` and ``coupled`` (the diffuse lobe gets only what the specular
-    lobe leaves) make the split sum follow the same energy rungs. ``shadowed`` Monte Carlo
-    directions are traced with the render kernel's ``occluded(scene, origin, direction, max_t)``,
-    which lets alpha cut-outs through as its shadow rays do."""
+    kappa, f0_dielectric, seed, stream) -> radiance reflected towards v of the environment's light
+    (unoccluded; the caller applies the occlusion texture). ``brdf`` is the render kernel's own
+    BRDF, which the Monte Carlo rung integrates; ``multiscatter``, ``coupled`` (the diffuse lobe
+    gets only what the specular lobe leaves) and ``gltf_mix`` (glTF's mix of a dielectric and a
+    metal, else the mix of their f0; see kernels/brdf.py brdf_for) make the split sum follow the
+    same rungs. ``shadowed`` Monte Carlo directions are traced with the render kernel's
+    ``occluded(scene, origin, direction, max_t)``, which lets alpha cut-outs through as its shadow
+    rays do."""
     lagarde = fresnel == "lagarde"
 
     @wp.func
-    def split_sum(env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), n: wp.vec3, v: wp.vec3,
-                  base_color: wp.vec3, metallic: float, roughness: float, specular: float) -> wp.vec3:
-        n_dot_v = wp.max(wp.dot(n, v), MIN_COSINE)
-        f0 = specular_f0(base_color, metallic, specular)
-        f90 = specular_f90(metallic, specular)
-        ab = dfg_lookup(dfg, n_dot_v, roughness)
+    def lobe_albedo(f0: wp.vec3, f90: wp.vec3, ab: wp.vec2, n_dot_v: float, roughness: float):
+        """(the specular lobe's albedo f0 A + f90 B, with multiple-scattering compensation, and
+        the f0 after Lagarde's roughness-aware Fresnel where that rung is chosen)."""
+        f0_seen = f0
         if wp.static(lagarde):
-            f0 = F_SchlickRoughness(f0, f90, n_dot_v, roughness)
-        albedo = f0 * ab[0] + f90 * ab[1]
+            f0_seen = F_SchlickRoughness(f0, f90, n_dot_v, roughness)
+        albedo = f0_seen * ab[0] + f90 * ab[1]
         if wp.static(multiscatter):
-            albedo = wp.cw_mul(albedo, wp.vec3(1.0) + f0 * (1.0 / wp.max(ab[0] + ab[1], 1.0e-3) - 1.0))
-        prefiltered = prefiltered_radiance(env, 2.0 * n_dot_v * n - v, roughness)
-        out = wp.vec3(0.0)
-        if wp.static(multiscatter):
-            out = wp.cw_mul(prefiltered, albedo)
+            albedo = wp.cw_mul(albedo, wp.vec3(1.0) + f0_seen * (1.0 / wp.max(ab[0] + ab[1], 1.0e-3) - 1.0))
+        return albedo, f0_seen
+
+    @wp.func
+    def split_sum(env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), n: wp.vec3, v: wp.vec3,
+                  base_color: wp.vec3, metallic: float, roughness: float, specular: float,
+                  f0_dielectric: wp.vec3) -> wp.vec3:
+        n_dot_v = wp.max(wp.dot(n, v), MIN_COSINE)
+        ab = dfg_lookup(dfg, n_dot_v, roughness)
+        f0_d = dielectric_specular_f0(f0_dielectric, specular)
+        albedo = wp.vec3(0.0)
+        below = wp.vec3(0.0)  # the albedo of the lobe above the diffuse one
+        below_f0 = wp.vec3(0.0)
+        if wp.static(gltf_mix):
+            dielectric, below_f0 = lobe_albedo(f0_d, wp.vec3(specular), ab, n_dot_v, roughness)
+            metal, _ = lobe_albedo(base_color, wp.vec3(1.0), ab, n_dot_v, roughness)
+            albedo = wp.lerp(dielectric, metal, metallic)
+            below = wp.vec3(max_channel(dielectric))
+            below_f0 = wp.vec3(max_channel(below_f0))
         else:
-            out = split_sum_specular(prefiltered, f0, f90, ab)
+            albedo, below_f0 = lobe_albedo(wp.lerp(f0_d, base_color, metallic), specular_f90(metallic, specular), ab,
+                                           n_dot_v, roughness)
+            below = albedo
+        out = wp.cw_mul(prefiltered_radiance(env, 2.0 * n_dot_v * n - v, roughness), albedo)
         diffuse_share = wp.vec3(1.0)
         if wp.static(coupled):
-            diffuse_share = wp.max(wp.vec3(1.0) - albedo, wp.vec3(0.0))
+            diffuse_share = wp.max(wp.vec3(1.0) - below, wp.vec3(0.0))
             if wp.static(lagarde):
-                diffuse_share = wp.vec3(1.0) - f0
+                diffuse_share = wp.vec3(1.0) - below_f0
         diffuse = wp.cw_mul(diffuse_share, base_color) * ((1.0 - metallic) / PI)
         return out + wp.cw_mul(diffuse, environment_irradiance(env, n))
 
     @wp.func
     def monte_carlo(scene: SceneData, env: EnvironmentData, p: wp.vec3, p_error: wp.vec3, ng: wp.vec3, n: wp.vec3,
                     v: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float, specular: float,
-                    eta: wp.vec3, kappa: wp.vec3, seed: int, stream: int) -> wp.vec3:
+                    eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, seed: int, stream: int) -> wp.vec3:
         """Half the directions cosine-weighted, half GGX visible normals, weighted by the balance
         heuristic (the mixture pdf; Veach 1997): unbiased for every BRDF rung."""
         frame = orthonormal_basis(n)
@@ -96,17 +113,18 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
             if wp.static(shadowed):
                 if occluded(scene, offset_ray_origin(p, p_error, ng, l), l, RAY_FAR):
                     continue
-            f = brdf(n, v, l, base_color, metallic, roughness, specular, eta, kappa)
+            f = brdf(n, v, l, base_color, metallic, roughness, specular, eta, kappa, f0_dielectric)
             total = total + wp.cw_mul(f, environment_radiance(env, l)) * (l_local[2] / pdf)
         return total / float(samples)
 
     @wp.func
     def ambient(scene: SceneData, env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), p: wp.vec3, p_error: wp.vec3,
                 ng: wp.vec3, n: wp.vec3, v: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
-                specular: float, eta: wp.vec3, kappa: wp.vec3, seed: int, stream: int) -> wp.vec3:
+                specular: float, eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, seed: int,
+                stream: int) -> wp.vec3:
         if wp.static(method == "monte_carlo"):
             return monte_carlo(scene, env, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
-                               kappa, seed, stream)
-        return split_sum(env, dfg, n, v, base_color, metallic, roughness, specular)
+                               kappa, f0_dielectric, seed, stream)
+        return split_sum(env, dfg, n, v, base_color, metallic, roughness, specular, f0_dielectric)
 
     return ambient

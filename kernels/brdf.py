@@ -4,8 +4,11 @@ Fresnel and diffuse terms here, the microfacet distributions and masking terms i
 kernels/microfacet.py; the albedo tables of energy compensation and coupling come from
 kernels/energy.py.
 
-The default, the real-time model of Karis 2013, is Lambert, GGX, Smith/Schlick-GGX and Schlick
-Fresnel; the other rungs are cheaper or more exact alternatives chosen at compile time (pbrwarp.BRDF)."""
+The default is glTF 2.0's material (its Appendix B): a dielectric BRDF (Lambert under a specular
+layer whose achromatic Fresnel comes from the IOR, scaled by KHR_materials_specular) mixed with a
+metal BRDF (a specular lobe with f0 = base colour) by metallic, with the terms of the real-time
+model of Karis 2013 (Lambert, GGX, Smith/Schlick-GGX, Schlick Fresnel); the other rungs are
+cheaper or more exact alternatives chosen at compile time (pbrwarp.BRDF)."""
 
 import functools
 
@@ -18,7 +21,7 @@ from .robust import MIN_COSINE, safe_normalize
 
 wp.set_module_options({"enable_backward": False})
 
-# Dielectric reflectance at normal incidence for specular = 1 (IOR 1.5; glTF).
+# Dielectric reflectance at normal incidence of glTF's default IOR 1.5, ((1.5 - 1) / (1.5 + 1))^2.
 DIELECTRIC_F0 = wp.constant(0.04)
 
 
@@ -127,9 +130,24 @@ def F_Schlick(f0: wp.vec3, f90: wp.vec3, v_dot_h: float) -> wp.vec3:
 
 
 @wp.func
-def specular_f0(base_color: wp.vec3, metallic: float, specular: float) -> wp.vec3:
-    """f0 = mix(0.04 specular, base_color, metallic) (glTF's metallic-roughness model; KHR_materials_specular)."""
-    return wp.lerp(wp.vec3(DIELECTRIC_F0 * specular), base_color, metallic)
+def dielectric_specular_f0(f0_dielectric: wp.vec3, specular: float) -> wp.vec3:
+    """The dielectric layer's f0, min(f0_dielectric, 1) specular (KHR_materials_specular):
+    ``f0_dielectric`` is ((ior - 1) / (ior + 1))^2 times the specular colour (KHR_materials_ior),
+    which may exceed 1 and is clamped before the specular factor scales it."""
+    return wp.min(f0_dielectric, wp.vec3(1.0)) * specular
+
+
+@wp.func
+def max_channel(x: wp.vec3) -> float:
+    """The largest component (KHR_materials_specular's max_value)."""
+    return wp.max(x[0], wp.max(x[1], x[2]))
+
+
+@wp.func
+def specular_f0(base_color: wp.vec3, metallic: float, specular: float, f0_dielectric: wp.vec3) -> wp.vec3:
+    """f0 = mix(dielectric f0, base_color, metallic): the f0 of the single specular lobe of the
+    "f0" metallic mix (dielectric_specular_f0 gives the dielectric's)."""
+    return wp.lerp(dielectric_specular_f0(f0_dielectric, specular), base_color, metallic)
 
 
 @wp.func
@@ -149,6 +167,9 @@ _FRESNEL = {"none": F_None, "schlick": F_Schlick, "spherical_gaussian": F_Spheri
 
 
 COUPLING_MODELS = ("albedo", "fresnel", "none")
+# How metallic combines a dielectric and a metal: "gltf" mixes their BRDFs (glTF 2.0, Appendix B),
+# "f0" mixes their f0 into one specular lobe over a diffuse one (Karis 2013).
+METALLIC_MIXES = ("gltf", "f0")
 # Floor of 1 - E_avg in the albedo coupling: a white metal's lobe reflects all light (E_avg -> 1),
 # and its diffuse weight (1 - metallic) is 0 anyway.
 MIN_DIFFUSE_SHARE = wp.constant(1.0e-6)
@@ -207,26 +228,49 @@ def albedo_lookup(distribution: str, geometry: str, fresnel: str):
 @functools.cache
 def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", distribution: str = "ggx",
              geometry: str = "schlick_ggx", fresnel: str = "schlick", energy: str = "single",
-             coupling: str = "albedo", model: str = "microfacet"):
-    """brdf(n, v, l, base_color, metallic, roughness, specular, eta=0, kappa=0) -> f(l, v):
-    k (1 - metallic) c f_d + D F V, V = G / (4 n.l n.v) in its visibility form; n.v is clamped to
-    MIN_COSINE, n.l <= 0 gives 0. The names pick each term's rung; the defaults are Karis 2013's
-    terms (f_d Lambert, GGX, Smith/Schlick-GGX, Schlick, single scattering).
+             coupling: str = "albedo", model: str = "microfacet", metallic_mix: str = "gltf"):
+    """brdf(n, v, l, base_color, metallic, roughness, specular, eta=0, kappa=0, f0_dielectric=0.04)
+    -> f(l, v). n.v is clamped to MIN_COSINE, n.l <= 0 gives 0; V = G / (4 n.l n.v) is the
+    geometry term in its visibility form, D the distribution, f_d the diffuse term. The names pick
+    each term's rung; the defaults are Karis 2013's terms (f_d Lambert, GGX, Smith/Schlick-GGX,
+    Schlick, single scattering) in glTF's mix.
+
+    The material: ``base_color`` (linear RGB), ``metallic``, ``roughness`` (perceptual), the
+    specular factor ``specular`` and ``f0_dielectric``, ((ior - 1) / (ior + 1))^2 times the
+    specular colour (unclamped; KHR_materials_ior and _specular), from which the dielectric's
+    f0_d = min(f0_dielectric, 1) specular and f90_d = specular.
+
+    ``metallic_mix="gltf"`` (default) is glTF 2.0's material (Appendix B, with
+    KHR_materials_specular): mix(dielectric, metal, metallic), the dielectric
+    F_d D V + k c f_d and the metal F_m D V, F_d the Fresnel of (f0_d, f90_d), F_m that of
+    (base_color, 1), c = base_color. ``"f0"`` mixes the f0 instead, as Karis 2013:
+    F D V + k (1 - metallic) c f_d, F of (mix(f0_d, base_color, metallic), mix(f90_d, 1, metallic)).
+    The specular lobes of the two agree for the Fresnel rungs linear in (f0, f90); the diffuse
+    shares differ: "f0" weights the diffuse lobe by the mixed, chromatic specular lobe's albedo,
+    which tints partly metallic materials.
 
     ``coupling`` is k, the share of light left to the diffuse lobe: "albedo" (default),
-    (1 - E(v))(1 - E(l)) / (1 - E_avg) with E the specular lobe's directional albedo (Kelemen &
-    Szirmay-Kalos 2001; Kulla & Conty 2017), which is reciprocal and conserves energy exactly for
-    Lambert (white-furnace albedo E(v) + (1 - E(v)) = 1); "fresnel", the common 1 - F(v.h), which
-    gives smooth white dielectrics seen at grazing angles up to ~6% more light than they receive;
-    "none", diffuse and specular simply added (Filament). ``energy="multiscatter"`` scales the
-    specular lobe by 1 + f0 (1/E1 - 1) (Fdez-Agüera 2019, as Filament). ``fresnel="exact"``
-    gives metals with a complex IOR (``eta`` + i ``kappa`` per channel; eta = 0 when the material
-    gives none) the exact conductor Fresnel, F = mix(F_dielectric, F_conductor, metallic).
+    (1 - E(v))(1 - E(l)) / (1 - E_avg) with E the directional albedo of the specular lobe above
+    the diffuse one (Kelemen & Szirmay-Kalos 2001; Kulla & Conty 2017), which is reciprocal and
+    conserves energy exactly for Lambert (white-furnace albedo E(v) + (1 - E(v)) = 1); "fresnel",
+    one minus the Fresnel at v.h, which gives smooth white dielectrics seen at grazing angles up
+    to ~6% more light than they receive; "none", diffuse and specular simply added (Filament).
+    In the "gltf" mix the lobe above the diffuse one is the dielectric's, and k is achromatic: E
+    of its largest channel (f0 = max_channel(f0_d), f90 = specular) and 1 - max_channel(F_d)
+    (KHR_materials_specular's fresnel_mix), so coloured specular never gives the diffuse lobe the
+    complementary colour. In the "f0" mix E and F are the single lobe's, per channel.
+
+    ``energy="multiscatter"`` scales each specular lobe by 1 + f0 (1/E1 - 1) with its own f0
+    (Fdez-Agüera 2019, as Filament). ``fresnel="exact"`` gives the dielectric the exact
+    dielectric Fresnel with the IOR its f0 implies (the material's ior for a white specular
+    colour), and metals with a complex IOR (``eta`` + i ``kappa`` per channel; eta = 0 when the
+    material gives none) the exact conductor Fresnel.
 
     ``model="phong"`` or ``"blinn_phong"`` replace all of this by the legacy baselines:
     (1 - c_spec) c_diff / pi plus c_spec times a normalized Phong or Blinn-Phong lobe (Lagarde 2011),
-    c_spec = f0, c_diff = (1 - metallic) base_color; the Phong exponent is a quarter of the
-    Blinn-Phong one, which gives highlights of about the same size (Akenine-Möller et al. 2008).
+    c_spec = mix(f0_d, base_color, metallic), c_diff = (1 - metallic) base_color; the Phong
+    exponent is a quarter of the Blinn-Phong one, which gives highlights of about the same size
+    (Akenine-Möller et al. 2008).
 
     Compiled with only the lobes a scene needs: without ``specular_lobe`` (every material has
     specular = 0 and metallic = 0, so f0 = f90 = 0) the Fresnel, D, V and albedo code is not
@@ -234,47 +278,51 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
     Either gives bit for bit what the full BRDF gives on such materials. (For a caller that
     evaluates one material many times, albedo_coupled_brdf_for gives the same BRDF with the
     albedo coupling's normalization taken as an argument.)"""
-    _check_rungs(diffuse, distribution, geometry, fresnel, energy, coupling, model)
+    _check_rungs(diffuse, distribution, geometry, fresnel, energy, coupling, model, metallic_mix)
     if model != "microfacet":
         return legacy_brdf(diffuse_lobe, specular_lobe, model)
-    return _microfacet_brdf(diffuse_lobe, specular_lobe, diffuse, distribution, geometry, fresnel, energy, coupling)[0]
+    return _microfacet_brdf(diffuse_lobe, specular_lobe, diffuse, distribution, geometry, fresnel, energy, coupling,
+                            metallic_mix)[0]
 
 
 @functools.cache
 def albedo_coupled_brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert",
                             distribution: str = "ggx", geometry: str = "schlick_ggx", fresnel: str = "schlick",
-                            energy: str = "single", coupling: str = "albedo", model: str = "microfacet"):
+                            energy: str = "single", coupling: str = "albedo", model: str = "microfacet",
+                            metallic_mix: str = "gltf"):
     """(brdf_scaled, diffuse_share_scale) of brdf_for's BRDF where it couples its lobes by
-    albedo, else None. diffuse_share_scale(base_color, metallic, roughness, specular) is the
-    coupling's normalization 1 / (1 - E_avg) per channel, and brdf_scaled(n, v, l, base_color,
-    metallic, roughness, specular, eta, kappa, scale) the BRDF given it: as it depends on the
-    material alone, not on the directions, a caller may compute it once per material (where no
-    texture or vertex colour varies its inputs) rather than for every light and pixel, which
-    saves a table lookup and three divisions per evaluation."""
-    _check_rungs(diffuse, distribution, geometry, fresnel, energy, coupling, model)
+    albedo, else None. diffuse_share_scale(base_color, metallic, roughness, specular,
+    f0_dielectric) is the coupling's normalization 1 / (1 - E_avg) per channel, and
+    brdf_scaled(n, v, l, base_color, metallic, roughness, specular, eta, kappa, f0_dielectric,
+    scale) the BRDF given it: as it depends on the material alone, not on the directions, a
+    caller may compute it once per material (where no texture or vertex colour varies its inputs)
+    rather than for every light and pixel, which saves a table lookup and three divisions per
+    evaluation."""
+    _check_rungs(diffuse, distribution, geometry, fresnel, energy, coupling, model, metallic_mix)
     if model != "microfacet" or coupling != "albedo" or not (diffuse_lobe and specular_lobe):
         return None
     _, brdf_scaled, diffuse_share_scale = _microfacet_brdf(diffuse_lobe, specular_lobe, diffuse, distribution,
-                                                           geometry, fresnel, energy, coupling)
+                                                           geometry, fresnel, energy, coupling, metallic_mix)
     return brdf_scaled, diffuse_share_scale
 
 
-def _check_rungs(diffuse, distribution, geometry, fresnel, energy, coupling, model):
+def _check_rungs(diffuse, distribution, geometry, fresnel, energy, coupling, model, metallic_mix):
     for name, value, allowed in (("diffuse", diffuse, DIFFUSE_MODELS), ("distribution", distribution, DISTRIBUTIONS),
                                  ("geometry", geometry, GEOMETRY_MODELS), ("fresnel", fresnel, FRESNEL_MODELS),
                                  ("energy", energy, ENERGY_MODELS), ("coupling", coupling, COUPLING_MODELS),
-                                 ("model", model, MODELS)):
+                                 ("model", model, MODELS), ("metallic_mix", metallic_mix, METALLIC_MIXES)):
         if value not in allowed:
             raise ValueError(f"unknown {name} model {value!r}; choose one of {allowed}")
 
 
 @functools.cache
 def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, distribution: str, geometry: str,
-                     fresnel: str, energy: str, coupling: str):
+                     fresnel: str, energy: str, coupling: str, metallic_mix: str):
     """(brdf, brdf_scaled, diffuse_share_scale) of a microfacet rung set (see brdf_for and
     albedo_coupled_brdf_for)."""
     fresnel_term = _FRESNEL[fresnel]
     exact_fresnel = fresnel == "exact"
+    gltf_mix = metallic_mix == "gltf"
     visibility = visibility_for(geometry)
     ndf = distribution_for(distribution)
     multiscatter = energy == "multiscatter" and specular_lobe
@@ -310,11 +358,20 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
         return out
 
     @wp.func
-    def diffuse_share_scale(base_color: wp.vec3, metallic: float, roughness: float, specular: float) -> wp.vec3:
+    def coupled_lobe(base_color: wp.vec3, metallic: float, specular: float, f0_dielectric: wp.vec3):
+        """(f0, f90) of the specular lobe whose albedo the diffuse lobe's share is coupled to: the
+        dielectric's largest channel in the "gltf" mix, the mixed lobe in the "f0" mix."""
+        f0_d = dielectric_specular_f0(f0_dielectric, specular)
+        if wp.static(gltf_mix):
+            return wp.vec3(max_channel(f0_d)), wp.vec3(specular)
+        return wp.lerp(f0_d, base_color, metallic), specular_f90(metallic, specular)
+
+    @wp.func
+    def diffuse_share_scale(base_color: wp.vec3, metallic: float, roughness: float, specular: float,
+                            f0_dielectric: wp.vec3) -> wp.vec3:
         """1 / (1 - E_avg) per channel, the albedo coupling's normalization (1 without it)."""
         if wp.static(albedo_coupling):
-            f0 = specular_f0(base_color, metallic, specular)
-            f90 = specular_f90(metallic, specular)
+            f0, f90 = coupled_lobe(base_color, metallic, specular, f0_dielectric)
             rest = wp.max(wp.vec3(1.0) - mean_lobe_albedo(f0, f90, roughness), wp.vec3(MIN_DIFFUSE_SHARE))
             return wp.cw_div(wp.vec3(1.0), rest)
         return wp.vec3(1.0)
@@ -335,8 +392,37 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
         return Fd_Lambert()
 
     @wp.func
+    def specular_fresnel(base_color: wp.vec3, metallic: float, specular: float, eta: wp.vec3, kappa: wp.vec3,
+                         f0_dielectric: wp.vec3, v_dot_h: float, e1: float):
+        """(the Fresnel weight of D V, with multiple-scattering compensation, and the Fresnel of
+        the lobe above the diffuse one, for the "fresnel" coupling)."""
+        f0_d = dielectric_specular_f0(f0_dielectric, specular)
+        f90_d = wp.vec3(specular)
+        if wp.static(gltf_mix):
+            dielectric = fresnel_term(f0_d, f90_d, v_dot_h)
+            metal = fresnel_term(base_color, wp.vec3(1.0), v_dot_h)
+            if wp.static(exact_fresnel):
+                if eta[0] > 0.0:
+                    metal = F_Conductor(eta, kappa, v_dot_h)
+            below = dielectric
+            if wp.static(multiscatter):
+                dielectric = wp.cw_mul(dielectric, energy_compensation(f0_d, e1))
+                metal = wp.cw_mul(metal, energy_compensation(base_color, e1))
+            return wp.lerp(dielectric, metal, metallic), below
+        f0 = wp.lerp(f0_d, base_color, metallic)
+        F = fresnel_term(f0, specular_f90(metallic, specular), v_dot_h)
+        if wp.static(exact_fresnel):
+            if eta[0] > 0.0:
+                F = wp.lerp(F_Exact(f0_d, f90_d, v_dot_h), F_Conductor(eta, kappa, v_dot_h), metallic)
+        below = F
+        if wp.static(multiscatter):
+            F = wp.cw_mul(F, energy_compensation(f0, e1))
+        return F, below
+
+    @wp.func
     def brdf_scaled(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
-                    specular: float, eta: wp.vec3, kappa: wp.vec3, diffuse_scale: wp.vec3) -> wp.vec3:
+                    specular: float, eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3,
+                    diffuse_scale: wp.vec3) -> wp.vec3:
         n_dot_l = wp.dot(n, l)
         if n_dot_l <= 0.0:
             return wp.vec3(0.0)
@@ -348,22 +434,21 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
             n_dot_h = wp.min(wp.dot(n, h), 1.0)
             v_dot_h = wp.clamp(wp.dot(v, h), 0.0, 1.0)
             alpha = alpha_from_roughness(roughness)
-            f0 = specular_f0(base_color, metallic, specular)
-            f90 = specular_f90(metallic, specular)
-            F = fresnel_term(f0, f90, v_dot_h)
-            if wp.static(exact_fresnel):
-                if eta[0] > 0.0:
-                    dielectric = F_Exact(specular_f0(base_color, 0.0, specular), specular_f90(0.0, specular), v_dot_h)
-                    F = wp.lerp(dielectric, F_Conductor(eta, kappa, v_dot_h), metallic)
+            e1 = float(1.0)
+            if wp.static(multiscatter):
+                e1 = lookup(n_dot_v, roughness)[0]
+            F, below = specular_fresnel(base_color, metallic, specular, eta, kappa, f0_dielectric, v_dot_h, e1)
             D = ndf(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
             out = F * (D * visibility(n_dot_v, n_dot_l, roughness))
-            if wp.static(multiscatter):
-                out = wp.cw_mul(out, energy_compensation(f0, lookup(n_dot_v, roughness)[0]))
             if wp.static(diffuse_lobe):
                 share = wp.vec3(1.0)
                 if wp.static(fresnel_coupling):
-                    share = wp.vec3(1.0) - F
+                    if wp.static(gltf_mix):
+                        share = wp.vec3(1.0 - max_channel(below))
+                    else:
+                        share = wp.vec3(1.0) - below
                 if wp.static(albedo_coupling):
+                    f0, f90 = coupled_lobe(base_color, metallic, specular, f0_dielectric)
                     share = albedo_share(f0, f90, n_dot_v, n_dot_l, roughness, diffuse_scale)
                 fd = diffuse_term(n_dot_v, n_dot_l, wp.dot(l, h), roughness)
                 out = wp.cw_mul(share, base_color) * ((1.0 - metallic) * fd) + out
@@ -374,11 +459,12 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
 
     @wp.func
     def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
-             specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0)) -> wp.vec3:
+             specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0),
+             f0_dielectric: wp.vec3 = wp.vec3(DIELECTRIC_F0)) -> wp.vec3:
         if wp.dot(n, l) <= 0.0:
             return wp.vec3(0.0)  # as brdf_scaled does, but before the scale's table lookup
-        return brdf_scaled(n, v, l, base_color, metallic, roughness, specular, eta, kappa,
-                           diffuse_share_scale(base_color, metallic, roughness, specular))
+        return brdf_scaled(n, v, l, base_color, metallic, roughness, specular, eta, kappa, f0_dielectric,
+                           diffuse_share_scale(base_color, metallic, roughness, specular, f0_dielectric))
 
     return brdf, brdf_scaled, diffuse_share_scale
 
@@ -389,11 +475,12 @@ def legacy_brdf(diffuse_lobe: bool, specular_lobe: bool, model: str):
 
     @wp.func
     def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
-             specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0)) -> wp.vec3:
+             specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0),
+             f0_dielectric: wp.vec3 = wp.vec3(DIELECTRIC_F0)) -> wp.vec3:
         n_dot_l = wp.dot(n, l)
         if n_dot_l <= 0.0:
             return wp.vec3(0.0)
-        c_spec = specular_f0(base_color, metallic, specular)
+        c_spec = specular_f0(base_color, metallic, specular, f0_dielectric)
         out = wp.vec3(0.0)
         if wp.static(diffuse_lobe):
             # c_diff (1 - c_spec) keeps c_diff + c_spec <= 1 (Lagarde 2011)

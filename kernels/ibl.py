@@ -57,13 +57,6 @@ def prefiltered_radiance(env: EnvironmentData, r: wp.vec3, roughness: float) -> 
 
 
 @wp.func
-def split_sum_specular(prefiltered: wp.vec3, f0: wp.vec3, f90: wp.vec3, dfg: wp.vec2) -> wp.vec3:
-    """Karis' split-sum specular: prefiltered radiance times the lobe's albedo f0 A + f90 B
-    (``dfg`` from kernels/dfg.py's dfg_lookup)."""
-    return wp.cw_mul(prefiltered, f0 * dfg[0] + f90 * dfg[1])
-
-
-@wp.func
 def F_SchlickRoughness(f0: wp.vec3, f90: wp.vec3, n_dot_v: float, roughness: float) -> wp.vec3:
     """Lagarde's roughness-aware Fresnel for ambient light (Lagarde 2011, "FresnelSchlickWithRoughness"):
     Schlick's with the grazing value lowered to max(gloss, f0), gloss = 1 - roughness, since a rough

@@ -48,7 +48,8 @@ def render_kernel(features):
     # the albedo coupling's normalization depends on the material's inputs alone: where no texture
     # or vertex colour varies them it is computed once per material met, not per light and pixel
     scale_per_material = bool(coupled) and not (f.base_color_texture or f.metallic_roughness_texture
-                                                or f.vertex_colors)
+                                                or f.vertex_colors or f.specular_texture
+                                                or f.specular_color_texture)
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
     lit = f.point_lights or f.directional_lights or f.spot_lights
     ibl = f.environment
@@ -63,7 +64,8 @@ def render_kernel(features):
 
     if ibl:
         ambient = ambient_for(ibl.method, ibl.fresnel, ibl.samples, ibl.shadowed, f.brdf.energy == "multiscatter",
-                              f.brdf.coupling != "none" and f.diffuse and f.specular, brdf, occluded)
+                              f.brdf.coupling != "none" and f.diffuse and f.specular, brdf, occluded,
+                              f.brdf.metallic_mix == "gltf")
 
     @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
@@ -86,6 +88,8 @@ def render_kernel(features):
                 base = wp.cw_mul(base, wp.vec3(vertex_color[0], vertex_color[1], vertex_color[2]))
             metallic = mat.metallic
             roughness = mat.roughness
+            specular = mat.specular
+            f0_dielectric = mat.f0_dielectric
             if wp.static(f.base_color_texture):
                 bc = texture_or_one(scene, mat.base_color_texture, uv)
                 base = wp.cw_mul(base, wp.vec3(bc[0], bc[1], bc[2]))
@@ -93,6 +97,11 @@ def render_kernel(features):
                 mr = texture_or_one(scene, mat.metallic_roughness_texture, uv)
                 roughness = roughness * mr[1]
                 metallic = metallic * mr[2]
+            if wp.static(f.specular_texture):
+                specular = specular * texture_or_one(scene, mat.specular_texture, uv)[3]
+            if wp.static(f.specular_color_texture):
+                sc = texture_or_one(scene, mat.specular_color_texture, uv)
+                f0_dielectric = wp.cw_mul(f0_dielectric, wp.vec3(sc[0], sc[1], sc[2]))
             for i in range(scene.num_lights):
                 ls = sample_light(scene.lights[i], h.p)
                 # light below the geometric surface: shading normals must not leak it through
@@ -121,17 +130,18 @@ def render_kernel(features):
                 fr = wp.vec3(0.0)
                 if wp.static(bool(coupled)):
                     if scale_material != h.material:
-                        scale = diffuse_share_scale(base, metallic, roughness, mat.specular)
+                        scale = diffuse_share_scale(base, metallic, roughness, specular, f0_dielectric)
                         scale_material = h.material
-                    fr = brdf_scaled(n, view, ls.to_light, base, metallic, roughness, mat.specular, mat.ior_eta,
-                                     mat.ior_kappa, scale)
+                    fr = brdf_scaled(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
+                                     mat.ior_kappa, f0_dielectric, scale)
                 else:
-                    fr = brdf(n, view, ls.to_light, base, metallic, roughness, mat.specular, mat.ior_eta,
-                              mat.ior_kappa)
+                    fr = brdf(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
+                              mat.ior_kappa, f0_dielectric)
                 radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
             if wp.static(bool(ibl)):
                 from_environment = ambient(scene, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
-                                           roughness, mat.specular, mat.ior_eta, mat.ior_kappa, seed, stream)
+                                           roughness, specular, mat.ior_eta, mat.ior_kappa, f0_dielectric, seed,
+                                           stream)
                 if wp.static(f.occlusion_texture):
                     if mat.occlusion_texture != NO_TEXTURE:
                         occlusion = texture_or_one(scene, mat.occlusion_texture, uv)[0]

@@ -17,6 +17,9 @@ class MaterialData:
     metallic: float
     roughness: float
     specular: float
+    # ((ior - 1) / (ior + 1))^2 times the specular colour: the dielectric's f0 before its clamp to
+    # 1 and the specular factor (KHR_materials_ior, KHR_materials_specular)
+    f0_dielectric: wp.vec3
     normal_scale: float
     # glTF occlusion: ambient light is scaled by 1 + strength (texel - 1)
     occlusion_strength: float
@@ -34,6 +37,8 @@ class MaterialData:
     normal_texture: int
     emissive_texture: int
     occlusion_texture: int
+    specular_texture: int
+    specular_color_texture: int
 
 
 @wp.struct

@@ -33,6 +33,9 @@ class Features:
     base_color_texture: bool = True
     metallic_roughness_texture: bool = True
     emissive_texture: bool = True
+    # KHR_materials_specular's textures: strength (alpha channel) and colour
+    specular_texture: bool = True
+    specular_color_texture: bool = True
     normal_mapping: bool = True
     vertex_colors: bool = True
     emission: bool = True
@@ -62,7 +65,8 @@ class Features:
 
     @property
     def textures(self) -> bool:
-        return self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture or self.normal_mapping
+        return (self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture
+                or self.normal_mapping or self.specular_texture or self.specular_color_texture)
 
     @classmethod
     def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), shadows="rays", ibl: IBL = IBL(),
@@ -154,8 +158,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     path, why = _visibility(visibility, scene.triangle_count, samples)
     decisions.append(Decision("visibility", path, why))
 
-    decisions.append(Decision("brdf", brdf, f"BRDF energy: {brdf.energy} scattering, {brdf.coupling} coupling of the diffuse lobe"
-                              if brdf.model == "microfacet" else f"BRDF: {brdf.describe()}"))
+    decisions.append(Decision("brdf", brdf, f"BRDF: {brdf.describe()}"))
 
     for name, kind, label in (("point_lights", POINT, "point light"), ("directional_lights", DIRECTIONAL, "directional light"),
                               ("spot_lights", SPOT, "spot light")):
@@ -207,6 +210,12 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     add("metallic_roughness_texture", present, why)
     present, why = slot("emissive_texture", "emissive texture")
     add("emissive_texture", present, why)
+    specular_lobe = next(d.present for d in decisions if d.name == "specular")
+    for name, label in (("specular_texture", "specular texture"), ("specular_color_texture", "specular colour texture")):
+        present, why = slot(name, label)
+        if present and not specular_lobe:
+            present, why = False, f"no {label}s read: no specular lobe"
+        add(name, present, why)
     present, why = slot("normal_texture", "normal map")
     add("normal_mapping", present, why + ("" if present else ": no tangent frames"))
     emitters = sum(1 for m in mats if max(m.emissive) > 0.0)

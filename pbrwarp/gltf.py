@@ -9,12 +9,11 @@ where a general scene graph does not bound its work (docs/loading.md).
 Supported: .glb and .gltf (buffers and images embedded, as ``data:`` URIs or as files inside the
 model's folder); accessors of every component type, normalized or not, interleaved (byteStride)
 and sparse; triangle lists and strips; PNG and JPEG textures (and WebP, GIF, BMP, TGA);
-samplers' wrap modes; KHR_texture_transform, KHR_materials_specular (specularFactor),
+samplers' wrap modes; KHR_texture_transform, KHR_materials_specular, KHR_materials_ior,
 KHR_materials_emissive_strength, KHR_lights_punctual; perspective cameras.
 
 Not supported: TEXCOORD_1 (textures that ask for it are sampled with TEXCOORD_0, with a
-warning), sampler filters (pbrwarp picks its own), specular colour and specular/other extension
-textures, light ``range``, orthographic cameras (skipped with a warning), skins, morph targets,
+warning), sampler filters (pbrwarp picks its own), other extensions' textures, light ``range``, orthographic cameras (skipped with a warning), skins, morph targets,
 animations, points, lines and triangle fans (skipped with a warning), and any extension listed
 in ``extensionsRequired`` other than the ones above (an error, as glTF asks).
 """
@@ -54,6 +53,7 @@ _TRIANGLES, _TRIANGLE_STRIP = 4, 5
 _MODES = range(7)  # POINTS .. TRIANGLE_FAN
 _SUPPORTED_EXTENSIONS = frozenset({
     "KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_specular", "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
 })
 # glTF's default material (spec 3.9.6): everything 1, single-sided.
 _DEFAULT_MATERIAL = dict(base_color=(1.0, 1.0, 1.0, 1.0), metallic=1.0, roughness=1.0, double_sided=False)
@@ -538,6 +538,8 @@ class _Materials:
         (("normalTexture",), "normal_texture"),
         (("occlusionTexture",), "occlusion_texture"),
         (("emissiveTexture",), "emissive_texture"),
+        (("extensions", "KHR_materials_specular", "specularTexture"), "specular_texture"),
+        (("extensions", "KHR_materials_specular", "specularColorTexture"), "specular_color_texture"),
     )
 
     def __init__(self, doc: _Document):
@@ -570,6 +572,8 @@ class _Materials:
             metallic=pbr.get("metallicFactor", 1.0),
             roughness=pbr.get("roughnessFactor", 1.0),
             specular=ext.get("KHR_materials_specular", {}).get("specularFactor", 1.0),
+            specular_color=ext.get("KHR_materials_specular", {}).get("specularColorFactor", (1.0, 1.0, 1.0)),
+            ior=ext.get("KHR_materials_ior", {}).get("ior", 1.5),
             emissive=tuple(float(c) * emissive_strength for c in spec.get("emissiveFactor", (0.0, 0.0, 0.0))),
             normal_scale=spec.get("normalTexture", {}).get("scale", 1.0),
             occlusion_strength=spec.get("occlusionTexture", {}).get("strength", 1.0),

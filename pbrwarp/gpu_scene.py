@@ -184,6 +184,7 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.base_color = wp.vec4(*mat.base_color)
     row.emissive = _float32_vector(mat.emissive, "Material.emissive")
     row.metallic, row.roughness, row.specular = mat.metallic, mat.roughness, mat.specular
+    row.f0_dielectric = _float32_vector(mat.f0_dielectric, "Material.specular_color")
     row.normal_scale, row.alpha_cutoff = mat.normal_scale, mat.alpha_cutoff
     row.double_sided = int(mat.double_sided)
     if mat.complex_ior is not None:
@@ -196,6 +197,8 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.normal_texture = slot_index.get("normal_texture", -1)
     row.emissive_texture = slot_index.get("emissive_texture", -1)
     row.occlusion_texture = slot_index.get("occlusion_texture", -1)
+    row.specular_texture = slot_index.get("specular_texture", -1)
+    row.specular_color_texture = slot_index.get("specular_color_texture", -1)
     row.occlusion_strength = mat.occlusion_strength
     return row
 

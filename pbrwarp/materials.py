@@ -15,6 +15,8 @@ TEXTURE_SLOTS = (
     ("normal_texture", False),
     ("occlusion_texture", False),
     ("emissive_texture", True),
+    ("specular_texture", False),
+    ("specular_color_texture", True),
 )
 
 
@@ -32,13 +34,23 @@ class Material(validate.Checked):
       stored as RGBA); the diffuse albedo of dielectrics, f0 of metals.
     - ``metallic`` (default 0), ``roughness`` (perceptual, GGX alpha = roughness^2; default 0.5):
       in [0, 1]. ``metallic_roughness_texture`` holds roughness in G and metallic in B (glTF).
+    - ``ior``: the dielectric's index of refraction (KHR_materials_ior), >= 1 or exactly 0
+      (default 1.5). Its reflectance at normal incidence is ((ior - 1) / (ior + 1))^2, 0.04 for
+      1.5; 0 means an infinite IOR (reflectance 1 at every angle), as the extension specifies for
+      materials converted from specular-glossiness. Metals are unaffected.
     - ``specular``: KHR_materials_specular's strength of the dielectric specular lobe, in [0, 1]:
-      1 (the default) is the usual f0 = 0.04, 0 removes the lobe entirely (a pure Lambert
+      1 (the default) leaves it as the IOR gives it, 0 removes it entirely (a pure Lambert
       surface). It scales both f0 and f90 of dielectric Fresnel; metals are unaffected.
+      ``specular_texture`` (linear) multiplies it by its alpha channel.
+    - ``specular_color``: KHR_materials_specular's tint of the dielectric's f0, linear RGB >= 0,
+      components may exceed 1 (default (1, 1, 1)); ``specular_color_texture`` (sRGB-encoded
+      unless the :class:`Texture` says otherwise) multiplies it. The dielectric's
+      f0 = min(((ior - 1) / (ior + 1))^2 specular_color, 1) specular, and its f90 = specular.
     - ``emissive``: emitted radiance in cd/m^2 (nits; W/(sr m^2) in radiometric terms), linear RGB
       >= 0 (default black), times ``emissive_texture``.
-    - Textures (default None): ``base_color_texture`` and ``emissive_texture`` (sRGB-encoded
-      unless the :class:`Texture` says otherwise), ``metallic_roughness_texture``,
+    - Textures (default None): ``base_color_texture``, ``emissive_texture`` and
+      ``specular_color_texture`` (sRGB-encoded unless the :class:`Texture` says otherwise),
+      ``metallic_roughness_texture``, ``specular_texture``,
       ``normal_texture`` (tangent-space, +Y green up) with ``normal_scale`` (any finite number,
       default 1, scaling the map's x and y), ``occlusion_texture`` with ``occlusion_strength``
       (in [0, 1], default 1; occlusion only scales environment light, so it has no effect under
@@ -63,6 +75,8 @@ class Material(validate.Checked):
     metallic: float = 0.0
     roughness: float = 0.5
     specular: float = 1.0
+    ior: float = 1.5
+    specular_color: tuple = (1.0, 1.0, 1.0)
     emissive: tuple = (0.0, 0.0, 0.0)
     base_color_texture: Texture | None = None
     metallic_roughness_texture: Texture | None = None
@@ -71,6 +85,8 @@ class Material(validate.Checked):
     occlusion_texture: Texture | None = None
     occlusion_strength: float = 1.0
     emissive_texture: Texture | None = None
+    specular_texture: Texture | None = None
+    specular_color_texture: Texture | None = None
     double_sided: bool = True
     alpha_mode: str = "OPAQUE"
     alpha_cutoff: float = 0.5
@@ -82,6 +98,8 @@ class Material(validate.Checked):
         "metallic": lambda material, value: validate.unit_interval(value, "Material.metallic"),
         "roughness": lambda material, value: validate.unit_interval(value, "Material.roughness"),
         "specular": lambda material, value: validate.unit_interval(value, "Material.specular"),
+        "ior": lambda material, value: _ior(value),
+        "specular_color": lambda material, value: validate.colour(value, "Material.specular_color"),
         "emissive": lambda material, value: validate.colour(value, "Material.emissive"),
         "normal_scale": lambda material, value: validate.finite_scalar(value, "Material.normal_scale"),
         "occlusion_strength": lambda material, value: validate.unit_interval(value, "Material.occlusion_strength"),
@@ -103,6 +121,13 @@ class Material(validate.Checked):
         f0 = tuple(((a - 1) ** 2 + b**2) / ((a + 1) ** 2 + b**2) for a, b in zip(n_rgb, k_rgb))
         return cls(base_color=f0, metallic=1.0, roughness=roughness, complex_ior=(n_rgb, k_rgb), **kwargs)
 
+    @property
+    def f0_dielectric(self) -> tuple:
+        """((ior - 1) / (ior + 1))^2 times ``specular_color`` per channel: the dielectric's f0
+        before its clamp to 1 and the ``specular`` factor (KHR_materials_ior, _specular)."""
+        reflectance = ((self.ior - 1.0) / (self.ior + 1.0)) ** 2
+        return tuple(reflectance * c for c in self.specular_color)
+
     def textures(self):
         """(slot, texture, srgb) for every texture this material uses."""
         for slot, colour_slot in TEXTURE_SLOTS:
@@ -117,6 +142,14 @@ def _base_color(value) -> tuple:
     if len(rgba) == 4 and rgba[3] > 1.0:
         raise InputError(f"Material.base_color alpha must lie in [0, 1], got {rgba[3]}")
     return rgba if len(rgba) == 4 else (*rgba, 1.0)
+
+
+def _ior(value) -> float:
+    """An index of refraction >= 1, or 0 (KHR_materials_ior's infinite IOR)."""
+    x = validate.finite_scalar(value, "Material.ior")
+    if x != 0.0 and x < 1.0:
+        raise InputError(f"Material.ior must be >= 1 (or 0, meaning infinite, as KHR_materials_ior allows), got {x}")
+    return x
 
 
 def _alpha_mode(value) -> str:

@@ -203,6 +203,37 @@ def test_conductor_material_and_exact_rung():
         pw.Material(complex_ior=(1.0, 2.0, 3.0))
 
 
+def test_exact_rung_gives_the_dielectric_the_fresnel_of_its_ior():
+    """glTF's mix with fresnel="exact": a dielectric (metallic 0, specular 1, white specular
+    colour) reflects with the Fresnel equations of the material's IOR (KHR_materials_ior), the
+    f0 it gets from ((ior - 1) / (ior + 1))^2 head-on."""
+    cos_v = np.array([1.0, 0.6, 0.2, 0.05])
+    v = wp.array(np.stack([np.sqrt(1 - cos_v**2), np.zeros(4), cos_v], -1).astype(np.float32), dtype=wp.vec3)
+
+    def evaluate(fresnel_model, f0):
+        brdf = kb.brdf_for(False, True, fresnel=fresnel_model)
+
+        @wp.kernel(enable_backward=False, module="unique")
+        def mirror_pair(v: wp.array(dtype=wp.vec3), f0: wp.vec3, out: wp.array(dtype=wp.vec3)):
+            i = wp.tid()
+            mirrored = wp.vec3(-v[i][0], -v[i][1], v[i][2])
+            out[i] = brdf(wp.vec3(0.0, 0.0, 1.0), v[i], mirrored, wp.vec3(0.5), 0.0, 0.4, 1.0, wp.vec3(0.0),
+                          wp.vec3(0.0), f0)
+
+        out = wp.zeros(4, dtype=wp.vec3)
+        wp.launch(mirror_pair, dim=4, inputs=[v, wp.vec3(f0), out])
+        return out.numpy().astype(np.float64)
+
+    for ior in (1.33, 1.5, 2.42):
+        f0 = pw.Material(ior=ior).f0_dielectric[0]
+        ratio = evaluate("exact", f0) / evaluate("none", f0)
+        want = complex_fresnel(cos_v, np.array(ior)) / f0
+        np.testing.assert_allclose(ratio, np.repeat(want[:, None], 3, 1), rtol=5e-5)
+    with pytest.raises(pw.InputError, match="ior"):
+        pw.Material(ior=0.9)
+    assert pw.Material(ior=0).f0_dielectric == (1.0, 1.0, 1.0)
+
+
 @pytest.mark.parametrize("model", ["phong", "blinn_phong"])
 def test_legacy_models_follow_seed_002(model):
     """Lambert (1 - c_spec) c_diff / pi plus c_spec times the normalized lobe: Phong
@@ -288,7 +319,9 @@ def test_every_rung_combination_renders_finite(rungs):
                        transform=np.diag([1.0, 1.0, 1.0, 1.0]) + np.pad(np.array([[0, 0, 0, 2.5 * (i - 1)]]), ((0, 3), (0, 0))))
     scene.add_light(pw.PointLight(position=(2, 3, 4), intensity=40.0))
     coupling = ("albedo", "fresnel", "none")[len(fresnel_model) % 3]
-    brdf = pw.BRDF(diffuse=diffuse, distribution=distribution, geometry=geometry, fresnel=fresnel_model, coupling=coupling)
+    mix = ("gltf", "f0")[len(geometry) % 2]
+    brdf = pw.BRDF(diffuse=diffuse, distribution=distribution, geometry=geometry, fresnel=fresnel_model, coupling=coupling,
+                   metallic_mix=mix)
     frame = render_checked(scene, pw.Camera.look_at(eye=(0, 0, 8), target=(0, 0, 0)), size=(48, 24), brdf=brdf)
     assert frame.rgb.max() > 0
     text = pw.explain(scene, brdf=brdf)
@@ -298,7 +331,7 @@ def test_every_rung_combination_renders_finite(rungs):
 
 def test_default_brdf_is_karis_terms_with_the_energy_conserving_coupling():
     assert pw.BRDF() == pw.BRDF(diffuse="lambert", distribution="ggx", geometry="schlick_ggx", fresnel="schlick", energy="single",
-                                coupling="albedo")
+                                coupling="albedo", metallic_mix="gltf")
 
 
 def test_presets_select_the_documented_rungs():

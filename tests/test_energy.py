@@ -34,6 +34,18 @@ def white_evaluator(brdf):
 eval_white = white_evaluator(default_brdf)
 
 
+def dielectric_evaluator(brdf, f0_dielectric):
+    """A white surface's BRDF (red channel) with the dielectric f0 ``f0_dielectric`` =
+    ((ior - 1) / (ior + 1))^2 specular_color, unclamped."""
+    @wp.kernel(enable_backward=False, module="unique")
+    def eval_white(v: wp.vec3, l: wp.array(dtype=wp.vec3), metallic: float, roughness: float, out: wp.array(dtype=float)):
+        i = wp.tid()
+        out[i] = brdf(wp.vec3(0.0, 0.0, 1.0), v, l[i], wp.vec3(1.0), metallic, roughness, 1.0, wp.vec3(0.0),
+                      wp.vec3(0.0), wp.vec3(f0_dielectric))[0]
+
+    return eval_white
+
+
 def directional_albedo(cos_view, metallic, roughness, seed=7, kernel=eval_white):
     """(estimate, standard error) of a(v) for a white surface."""
     rng = np.random.default_rng(seed)
@@ -103,6 +115,23 @@ def test_white_dielectric_and_mixed_furnace():
     assert excess <= 0.0, where
 
 
+def test_default_furnace_over_ior_and_specular_colour():
+    """glTF's mix never reflects more than it receives, whatever the IOR (1, glass, diamond-like
+    2.5, and 0, KHR_materials_ior's infinite IOR) and specular colour, including colours above 1,
+    whose product with the IOR's f0 KHR_materials_specular clamps to 1 (an unclamped f0 of 3
+    would reflect up to three times the light), with single and multiple scattering (which
+    restores energy only up to the albedo table's error, as the tests below allow it)."""
+    for energy, table_error in (("single", 1e-3), ("multiscatter", 0.01)):
+        brdf = kb.brdf_for(True, True, energy=energy)
+        for ior, specular_color in ((1.0, 1.0), (2.5, 1.0), (0.0, 1.0), (1.5, 2.0), (1.5, 75.0), (2.5, 40.0)):
+            kernel = dielectric_evaluator(brdf, ((ior - 1) / (ior + 1)) ** 2 * specular_color)
+            for metallic in (0.0, 0.5):
+                for r in (0.05, 0.25, 0.5, 1.0):
+                    for c in (1.0, 0.3, 0.02):
+                        est, err = directional_albedo(c, metallic, r, kernel=kernel)
+                        assert est <= 1.0 + 4 * err + table_error, (energy, ior, specular_color, metallic, r, c, est)
+
+
 def test_albedo_coupling_conserves_white_dielectric_energy():
     """With Lambert and the albedo coupling a white dielectric reflects exactly what it receives,
     a(v) = E(v) + (1 - E(v)) = 1, with single or multiple scattering, up to the albedo table's
@@ -118,15 +147,16 @@ def test_albedo_coupling_conserves_white_dielectric_energy():
 def coupled_evaluator(scaled_brdf, diffuse_share_scale, brdf):
     @wp.kernel(enable_backward=False, module="unique")
     def evaluate(v: wp.array(dtype=wp.vec3), l: wp.array(dtype=wp.vec3), base: wp.array(dtype=wp.vec3),
-                 params: wp.array(dtype=wp.vec3), given: wp.array(dtype=wp.vec3), whole: wp.array(dtype=wp.vec3),
-                 scales: wp.array(dtype=wp.vec3)):
+                 params: wp.array(dtype=wp.vec3), f0_dielectric: wp.array(dtype=wp.vec3),
+                 given: wp.array(dtype=wp.vec3), whole: wp.array(dtype=wp.vec3), scales: wp.array(dtype=wp.vec3)):
         i = wp.tid()
         n = wp.vec3(0.0, 0.0, 1.0)
         p = params[i]
-        scale = diffuse_share_scale(base[i], p[0], p[1], p[2])
+        scale = diffuse_share_scale(base[i], p[0], p[1], p[2], f0_dielectric[i])
         scales[i] = scale
-        given[i] = scaled_brdf(n, v[i], l[i], base[i], p[0], p[1], p[2], wp.vec3(0.0), wp.vec3(0.0), scale)
-        whole[i] = brdf(n, v[i], l[i], base[i], p[0], p[1], p[2])
+        given[i] = scaled_brdf(n, v[i], l[i], base[i], p[0], p[1], p[2], wp.vec3(0.0), wp.vec3(0.0), f0_dielectric[i],
+                               scale)
+        whole[i] = brdf(n, v[i], l[i], base[i], p[0], p[1], p[2], wp.vec3(0.0), wp.vec3(0.0), f0_dielectric[i])
 
     return evaluate
 
@@ -134,7 +164,8 @@ def coupled_evaluator(scaled_brdf, diffuse_share_scale, brdf):
 def test_the_albedo_coupling_normalization_given_once_is_the_brdf_itself():
     """Renders compute the coupling's 1 / (1 - E_avg) once per material (albedo_coupled_brdf_for):
     given it, the BRDF is brdf_for's bit for bit, for every material; it is 1 where the specular
-    lobe reflects nothing (f0 = f90 = 0: specular 0, not metallic) and above 1 elsewhere."""
+    lobe under which the diffuse lobe lies reflects nothing (f0 = f90 = 0: specular 0, and in the
+    "f0" mix not metallic) and above 1 elsewhere."""
     rng = np.random.default_rng(5)
     count = 2000
 
@@ -146,14 +177,17 @@ def test_the_albedo_coupling_normalization_given_once_is_the_brdf_itself():
     base = rng.uniform(0, 1, (count, 3)).astype(np.float32)
     params = np.column_stack([rng.choice([0.0, 0.3, 1.0], count), rng.uniform(0, 1, count),
                               rng.choice([0.0, 0.5, 1.0], count)]).astype(np.float32)  # metallic, roughness, specular
-    for rungs in ({}, {"energy": "multiscatter"}, {"geometry": "smith_correlated", "diffuse": "burley"}):
+    f0_dielectric = (rng.choice([0.0, 0.04, 0.17, 1.0], (count, 1)) * rng.uniform(0, 2, (count, 3))).astype(np.float32)
+    for rungs in ({}, {"energy": "multiscatter"}, {"geometry": "smith_correlated", "diffuse": "burley"},
+                  {"metallic_mix": "f0"}, {"metallic_mix": "f0", "energy": "multiscatter"}):
         scaled_brdf, diffuse_share_scale = kb.albedo_coupled_brdf_for(True, True, **rungs)
         out = [wp.empty(count, dtype=wp.vec3) for _ in range(3)]
         wp.launch(coupled_evaluator(scaled_brdf, diffuse_share_scale, kb.brdf_for(True, True, **rungs)), dim=count,
-                  inputs=[wp.array(a, dtype=wp.vec3) for a in (v, l, base, params)], outputs=out)
+                  inputs=[wp.array(a, dtype=wp.vec3) for a in (v, l, base, params, f0_dielectric)], outputs=out)
         given, whole, scales = (a.numpy() for a in out)
         assert np.array_equal(given, whole), rungs
-        reflects_nothing = (params[:, 0] == 0) & (params[:, 2] == 0)
+        # the lobe the diffuse one is coupled to: the dielectric's in glTF's mix, the mixed one's else
+        reflects_nothing = (params[:, 2] == 0) & ((params[:, 0] == 0) | (rungs.get("metallic_mix") != "f0"))
         assert np.all(scales[reflects_nothing] == 1.0) and np.all(scales[~reflects_nothing] > 1.0), rungs
     for other in ({"coupling": "fresnel"}, {"coupling": "none"}, {"model": "phong"}):
         assert kb.albedo_coupled_brdf_for(True, True, **other) is None

@@ -31,6 +31,15 @@ def textured_material(**kw):
         emissive_texture=rng.uniform(0, 1, (4, 4, 3)).astype(np.float32), emissive=(0.1, 0.2, 0.05), **kw)
 
 
+def specular_textured_material(**kw):
+    """KHR_materials_specular's strength (alpha) and colour textures, an IOR and a colour above 1."""
+    rng = np.random.default_rng(1)
+    fields = dict(base_color=(0.8, 0.3, 0.2), metallic=0.3, roughness=0.35, ior=1.8, specular_color=(2.0, 1.5, 1.0),
+                  specular_texture=rng.uniform(0, 1, (8, 8, 4)).astype(np.float32),
+                  specular_color_texture=rng.uniform(0, 1, (8, 8, 3)).astype(np.float32))
+    return pw.Material(**{**fields, **kw})
+
+
 def uv_sphere():
     mesh = trimesh.creation.uv_sphere(count=(24, 24))
     uv = np.column_stack([np.arctan2(mesh.vertices[:, 1], mesh.vertices[:, 0]) / (2 * np.pi) + 0.5,
@@ -57,7 +66,10 @@ def scenes():
         ("all metal", sphere_scene(pw.Material(metallic=1.0, roughness=0.3), [POINT]), {"diffuse", "directional_lights"}),
         ("pure lambert", sphere_scene(pw.Material(specular=0.0), [SPOT]), {"specular"}),
         ("no lights", sphere_scene(pw.Material(emissive=(0.5, 0.2, 0.1)), []), {"diffuse", "specular", "shadows"}),
-        ("textured", sphere_scene(textured_material(), [POINT, DIRECTIONAL], uv_sphere()), {"spot_lights", "shadows"}),
+        ("textured", sphere_scene(textured_material(), [POINT, DIRECTIONAL], uv_sphere()),
+         {"spot_lights", "shadows", "specular_texture", "specular_color_texture"}),
+        ("specular textures", sphere_scene(specular_textured_material(), [POINT], uv_sphere()),
+         {"base_color_texture", "metallic_roughness_texture", "emissive_texture", "normal_mapping"}),
         ("shadows", floor_and_sphere, {"directional_lights", "normal_mapping"}),
         ("everything", mixed, set()),
     ]
@@ -108,6 +120,11 @@ def test_explain_says_what_and_why():
     assert "no shadow rays: shadows=False" in pw.explain(scenes()[5][1], shadows=False)
     assert "no lights" in pw.explain(scenes()[3][1])
     assert "4 stratified samples per pixel" in pw.explain(scenes()[0][1], spp=4)
+    assert "no specular textures" in text and "no specular colour textures" in text
+    textured = pw.explain(sphere_scene(specular_textured_material(), [POINT], uv_sphere()))
+    assert "specular texture: 1 of 1 meshes" in textured and "specular colour texture: 1 of 1 meshes" in textured
+    unlit = pw.explain(sphere_scene(specular_textured_material(specular=0.0, metallic=0.0), [POINT], uv_sphere()))
+    assert "no specular textures read: no specular lobe" in unlit
 
 
 def test_changing_factors_keeps_the_variant_changing_effects_may_not():

@@ -25,25 +25,28 @@ ROUGHNESS_GRID = [0.0, 1e-8, 1e-4, MIN_ROUGHNESS, 0.045, 0.5, 1.0]
 COSINE_GRID = [1.0, 0.5, 1e-3, 1e-6, 0.0, -1e-3]
 
 
-# the default model, every lobe compiled in
+# the default model (glTF's mix), every lobe compiled in
 default_brdf = kb.brdf_for(True, True)
 
 
 @wp.kernel(enable_backward=False)
 def eval_brdf(n: wp.array(dtype=wp.vec3), v: wp.array(dtype=wp.vec3), l: wp.array(dtype=wp.vec3),
               base: wp.array(dtype=wp.vec3), metallic: wp.array(dtype=float), roughness: wp.array(dtype=float),
-              specular: wp.array(dtype=float), out: wp.array(dtype=wp.vec3)):
+              specular: wp.array(dtype=float), f0_dielectric: wp.array(dtype=wp.vec3), out: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    out[i] = default_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i])
+    out[i] = default_brdf(n[i], v[i], l[i], base[i], metallic[i], roughness[i], specular[i], wp.vec3(0.0),
+                          wp.vec3(0.0), f0_dielectric[i])
 
 
-def brdf(n, v, l, base, metallic, roughness, specular):
-    """Evaluate the kernel's BRDF on numpy batches (one launch)."""
+def brdf(n, v, l, base, metallic, roughness, specular, f0_dielectric=0.04):
+    """Evaluate the kernel's BRDF on numpy batches (one launch); ``f0_dielectric`` is
+    ((ior - 1) / (ior + 1))^2 times the specular colour."""
     count = len(v)
     vec = lambda a: wp.array(np.broadcast_to(np.asarray(a, np.float32), (count, 3)).copy(), dtype=wp.vec3)
     sca = lambda a: wp.array(np.broadcast_to(np.asarray(a, np.float32), (count,)).copy(), dtype=float)
     out = wp.zeros(count, dtype=wp.vec3)
-    wp.launch(eval_brdf, dim=count, inputs=[vec(n), vec(v), vec(l), vec(base), sca(metallic), sca(roughness), sca(specular), out])
+    wp.launch(eval_brdf, dim=count, inputs=[vec(n), vec(v), vec(l), vec(base), sca(metallic), sca(roughness), sca(specular),
+                                            vec(f0_dielectric), out])
     return out.numpy().astype(np.float64)
 
 
@@ -71,6 +74,20 @@ def test_adversarial_grid_is_finite_non_negative_and_bounded():
     assert f.max() <= peak
     # light below the surface contributes nothing
     assert np.all(f[l[:, 2] <= 0.0] == 0.0)
+
+
+@pytest.mark.parametrize("f0_dielectric", [0.0, 1.0, 3.4e38], ids=["ior 1", "ior 0 (infinite)", "huge specular colour"])
+def test_extreme_ior_and_specular_colour_on_the_adversarial_grid(f0_dielectric):
+    """An IOR of 1 (no dielectric f0), KHR_materials_ior's 0 (f0 = 1) and the largest specular
+    colour float32 holds (clamped to f0 = 1, so exactly the BRDF of f0 = 1): finite,
+    non-negative and within the bound of the default's grid."""
+    v, l, r, m, b, s = adversarial_grid()
+    base = np.repeat(b[:, None], 3, 1)
+    f = brdf((0, 0, 1), v, l, base, m, r, s, f0_dielectric)
+    assert np.all(np.isfinite(f)) and np.all(f >= 0.0)
+    assert f.max() <= 1.0 / (math.pi * 1e-7) * 8.0 * 8.0 / (4.0 * MIN_COSINE)
+    if f0_dielectric > 1.0:
+        assert np.array_equal(f, brdf((0, 0, 1), v, l, base, m, r, s, 1.0))
 
 
 @pytest.mark.parametrize("roughness", [0.0, 1e-8, 1e-4])
@@ -132,32 +149,34 @@ def term_errors(v, l, r, m, b, s):
     """Worst and median float32 relative error of D, V, F and the whole BRDF against the float64
     reference, each term fed the float64 values of its own inputs rounded to float32."""
     from pbrwarp.kernels.energy import albedo_tables
-    from test_brdf import eval_terms, table_share
+    from test_brdf import launch_terms, table_share
 
     count = len(v)
     n = np.tile([0.0, 0.0, 1.0], (count, 1))
     h = ref.normalize(v + l)
     base = np.repeat(b[:, None], 3, 1)
     inputs = dict(n=n, v=v, l=l, base=base, metallic=m, roughness=r, specular=s,
-                  n_dot_h=h[:, 2], sin_sq=np.sum(np.cross(n, h) ** 2, -1))
-    dev = [wp.array(a.astype(np.float32), dtype=wp.vec3 if a.ndim == 2 else float) for a in inputs.values()]
-    outs = [wp.zeros(count, dtype=float), wp.zeros(count, dtype=float)] + [wp.zeros(count, dtype=wp.vec3) for _ in range(3)]
-    wp.launch(eval_terms, dim=count, inputs=dev + outs)
+                  n_dot_h=h[:, 2], sin_sq=np.sum(np.cross(n, h) ** 2, -1), f0_dielectric=np.full((count, 3), 0.04))
+    d, g, f, f0_mix, f0_mix_fresnel, gltf, gltf_fresnel = launch_terms(inputs, count)
+    outs = (d, g, f, gltf, gltf_fresnel, f0_mix, f0_mix_fresnel)
     x = {k: a.astype(np.float32).astype(np.float64) for k, a in inputs.items()}
     nv, nl = x["v"][:, 2], x["l"][:, 2]
     mm, ss = x["metallic"][:, None], x["specular"][:, None]
+    share = table_share(albedo_tables("ggx", "schlick_ggx", "schlick"))
+    material = (np.array([0.0, 0.0, 1.0]), x["v"], x["l"], x["base"], x["metallic"], x["roughness"], x["specular"])
+    ior, white = np.full(count, 1.5), np.ones((count, 3))
     want = {
         "D_GGX": ref.d_ggx(x["n_dot_h"], x["roughness"] ** 2),
         "V_SmithSchlickGGX": ref.g_schlick_ggx(nv, nl, x["roughness"]) / (4 * nv * nl),
         "F_Schlick": ref.f_schlick((1 - mm) * 0.04 * ss + mm * x["base"], (1 - mm) * ss + mm, np.sum(x["v"] * h, -1)),
-        "BRDF": ref.brdf(np.array([0.0, 0.0, 1.0]), x["v"], x["l"], x["base"], x["metallic"], x["roughness"], x["specular"],
-                         table_share(albedo_tables("ggx", "schlick_ggx", "schlick"))),
-        "BRDF, 1 - F coupling": ref.brdf(np.array([0.0, 0.0, 1.0]), x["v"], x["l"], x["base"], x["metallic"],
-                                                 x["roughness"], x["specular"]),
+        "BRDF": ref.gltf_brdf(*material, ior, white, share),
+        "BRDF, 1 - F coupling": ref.gltf_brdf(*material, ior, white),
+        "BRDF, f0 mix": ref.brdf(*material, share),
+        "BRDF, f0 mix, 1 - F coupling": ref.brdf(*material),
     }
     table = {}
     for (name, w), got in zip(want.items(), outs):
-        got = got.numpy().astype(np.float64).reshape(w.shape)
+        got = got.reshape(w.shape)
         ok = w > 1e-30
         rel = np.abs(got - w)[ok] / w[ok]
         table[name] = (float(rel.max()), float(np.median(rel)))
@@ -183,6 +202,7 @@ def test_error_table_on_the_hard_grid():
     # (1 - v.h)^5 turns into 5 * 2e-7 / F, F >= 0.04 where it is not zero: 2.5e-5. The whole
     # BRDF adds that half vector's ~1e-7 rad error in D, up to 2e-7 / alpha: 6e-4 at the
     # smallest alpha (3.2e-4) of the grid. The bounds are those, with about a factor 2 to spare.
-    bounds = {"D_GGX": 4e-6, "V_SmithSchlickGGX": 2e-6, "F_Schlick": 5e-5, "BRDF": 1.2e-3, "BRDF, 1 - F coupling": 1.2e-3}
+    bounds = {"D_GGX": 4e-6, "V_SmithSchlickGGX": 2e-6, "F_Schlick": 5e-5, "BRDF": 1.2e-3, "BRDF, 1 - F coupling": 1.2e-3,
+              "BRDF, f0 mix": 1.2e-3, "BRDF, f0 mix, 1 - F coupling": 1.2e-3}
     for name, (worst, _) in table.items():
         assert worst <= bounds[name], (name, worst)

@@ -315,7 +315,8 @@ def test_colour_slots_decode_srgb_and_data_slots_do_not():
 
 def head_on_radiance(metallic, roughness=1.0, specular=0.0):
     """Radiance / E of a white surface seen and lit head-on (n = v = l = h), from the BRDF of
-    Karis 2013 (rendered with coupling="fresnel"): f0 = mix(0.04 specular, 1, m), F = f0 at v.h = 1; diffuse (1 - F)(1 - m) / pi;
+    Karis 2013 (rendered with its f0 mix and coupling="fresnel", where metallic darkens the diffuse
+    lobe twice, which separates the two decodings best): f0 = mix(0.04 specular, 1, m), F = f0 at v.h = 1; diffuse (1 - F)(1 - m) / pi;
     GGX D = 1 / (pi alpha^2) at n.h = 1 with alpha = roughness^2; Smith G = 1 at n.v = n.l = 1."""
     f0 = 0.04 * specular * (1 - metallic) + metallic
     alpha2 = max(roughness**4, 1e-7)
@@ -330,7 +331,7 @@ def test_metallic_roughness_texture_is_read_linear_in_the_render():
     texture[..., 2] = 128  # metallic
     material = pw.Material(base_color=(1, 1, 1), metallic=1.0, roughness=1.0, specular=0.0,
                            metallic_roughness_texture=texture)
-    frame = render_head_on(material, brdf=pw.BRDF(coupling="fresnel"))
+    frame = render_head_on(material, brdf=pw.BRDF(coupling="fresnel", metallic_mix="f0"))
     linear, srgb = head_on_radiance(128 / 255), head_on_radiance(float(srgb_eotf(128 / 255)))
     assert abs(linear - srgb) > 0.5 * linear
     np.testing.assert_allclose(frame.rgb[4, 4], LUX * linear, rtol=1e-4)
