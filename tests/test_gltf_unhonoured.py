@@ -240,6 +240,16 @@ def test_scenes_built_in_python_have_no_load_warnings():
     assert pw.Scene().load_warnings == ()
 
 
+def test_mesh_files_keep_their_load_warnings_too(tmp_path):
+    """An OBJ naming a material library that does not exist: loaded without it, said and kept."""
+    path = tmp_path / "tri.obj"
+    path.write_text("mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.warns(UserWarning) as caught:
+        scene = pw.Scene.load(path)
+    assert [str(w.message) for w in caught] == list(scene.load_warnings) == [
+        f"{path} names the file 'missing.mtl', which does not exist; loaded without it"]
+
+
 # ---------------------------------------------------------------------------- explain and the CLI
 def unhonoured_file(tmp_path):
     return quad_file(tmp_path, lambda b: materials({"name": "cloth", "alphaMode": "BLEND",
