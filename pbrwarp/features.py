@@ -243,10 +243,13 @@ def scene_features(scene, gpu, **options) -> Features:
     return Features(**{d.name: d.present for d in decide(scene, gpu, **options)})
 
 
-def describe(decisions: list[Decision]) -> str:
-    """The text of pw.explain: what is simulated, then what was dropped and why."""
+def describe(decisions: list[Decision], load_warnings=()) -> str:
+    """The text of pw.explain: what is simulated, then what was dropped and why, then what the
+    scene's file asks for that pbrwarp does not honour (``Scene.load_warnings``), if anything."""
     on = [d.why for d in decisions if d.present is not False]
     off = [d.why for d in decisions if d.present is False]
     lines = ["simulated:"] + [f"  + {w}" for w in on] + ["not simulated:"] + [f"  - {w}" for w in dict.fromkeys(off)]
+    if load_warnings:
+        lines += ["not honoured from the file (warned at load):"] + [f"  ! {w}" for w in load_warnings]
     return "\n".join(lines)
 

@@ -252,7 +252,8 @@ def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality
             ibl: IBL | None = None, background=None, **_render_options) -> str:
     """The text saying which effects :func:`render` with these options simulates for ``scene``,
     and why each absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow
-    itself ..."), with the estimated cost of each primary visibility path. Takes render's options
+    itself ..."), with the estimated cost of each primary visibility path, and, last, what the
+    scene's file asks for that pbrwarp does not honour (``scene.load_warnings``). Takes render's options
     (those that decide nothing it says, like ``camera`` or ``threads``, are accepted and ignored)
     and raises as render does for bad ones, and for a keyword render does not take."""
     if not isinstance(scene, Scene):
@@ -267,4 +268,4 @@ def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality
     samples = width * height * spp
     return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf),
                            visibility=visibility, samples=samples, ibl=ibl_for_quality(quality, ibl),
-                           background_given=background is not None))
+                           background_given=background is not None), scene.load_warnings)

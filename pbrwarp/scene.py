@@ -34,7 +34,9 @@ class Scene:
     ``primitives`` (list of :class:`Primitive`), ``lights`` (point, directional and spot
     lights), ``cameras`` (those a file defines; ``render`` uses the first by default) and
     ``environment`` may be read and changed freely between renders; ``cache`` keeps what renders
-    derived from them. One scene may be rendered from several threads at once.
+    derived from them. ``load_warnings`` (a tuple of strings) holds the warnings :meth:`load`
+    issued about what in the file pbrwarp does not honour; :func:`pbrwarp.explain` lists them. One
+    scene may be rendered from several threads at once.
 
     >>> scene = Scene.load("model.glb")                # or Scene() and add_mesh/add_light
     """
@@ -43,6 +45,7 @@ class Scene:
         self.primitives: list[Primitive] = []
         self.lights: list = []
         self.cameras: list[Camera] = []
+        self.load_warnings: tuple[str, ...] = ()
         self._environment = None
         self._cache = SceneCache()
 
@@ -110,7 +113,11 @@ class Scene:
 
         Raises ``AssetNotFoundError`` for a missing file and ``AssetFormatError`` naming the file
         and the problem for a corrupt one, one that names a file outside the allowed folders or
-        one past a limit. docs/loading.md lists what is read, what is refused and why.
+        one past a limit. Warns (a ``UserWarning`` naming the file) once for each kind of thing in
+        the file that pbrwarp does not honour -- a glTF extension it ignores, alphaMode BLEND, an
+        animation, a skin, a texture file an OBJ names that does not exist -- saying what is
+        rendered instead; the scene keeps the messages in ``load_warnings``. docs/loading.md lists
+        what is read, what is warned about, what is refused and why.
         """
         path, ext = validate.readable_file(path, "scene file", LOADABLE, "meshes and glTF scenes")
         roots = validate.allowed_roots(allowed_roots)
@@ -121,6 +128,7 @@ class Scene:
             scene.primitives.extend(content.primitives)
             scene.lights.extend(content.lights)
             scene.cameras.extend(content.cameras)
+            scene.load_warnings = content.load_warnings
             return scene
         import trimesh
 
@@ -131,12 +139,15 @@ class Scene:
             raise AssetFormatError(f"cannot read {path}: {type(err).__name__}: {err}") from None
         if files.refused:  # trimesh logs a file it cannot get and goes on without it
             raise files.refused[0]
-        for name in files.missing:
-            warnings.warn(f"{path} names the file {name!r}, which does not exist; loaded without it", stacklevel=2)
+        notes = tuple(f"{path} names the file {name!r}, which does not exist; loaded without it"
+                      for name in files.missing)
+        for message in notes:
+            warnings.warn(message, stacklevel=2)
         try:
             scene = cls.from_trimesh(loaded)
         except (InputError, InputTypeError) as err:  # NaN normals, overflowing vertices, ...
             raise AssetFormatError(f"cannot load {path}: {err}") from None
+        scene.load_warnings = notes
         if not scene.primitives:
             raise AssetFormatError(f"{path} contains no triangles")
         return scene

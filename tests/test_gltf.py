@@ -391,8 +391,14 @@ def test_points_lines_and_fans_are_skipped_with_a_warning(tmp_path):
     prim = b.json["meshes"][mesh]["primitives"][0]
     b.json["meshes"][mesh]["primitives"] += [dict(prim, mode=0), dict(prim, mode=1), dict(prim, mode=6)]
     b.node(mesh=mesh)
-    with pytest.warns(UserWarning, match="3 placed primitive.s. without triangles ignored"):
-        assert len(load_gltf(b.glb(tmp_path / "modes.glb")).primitives) == 1
+    with pytest.warns(UserWarning) as caught:
+        content = load_gltf(b.glb(tmp_path / "modes.glb"))
+    assert len(content.primitives) == 1
+    assert [str(w.message) for w in caught] == list(content.load_warnings)
+    assert [m.split(": ", 1)[1] for m in content.load_warnings] == [
+        "primitive 1 of mesh 'Quad' drawn as points skipped: pbrwarp renders triangles only",
+        "primitive 2 of mesh 'Quad' drawn as lines skipped: pbrwarp renders triangles only",
+        "primitive 3 of mesh 'Quad' drawn as triangle fans skipped: rendered without them"]
 
 
 def test_material_extensions_and_texture_settings(tmp_path):

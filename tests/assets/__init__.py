@@ -53,6 +53,14 @@ GLTF = _models(IN_REPO) + (_models(EXTENDED) if EXTENDED else [])
 MESHES = _meshes(_IN_REPO_MESH_FOLDERS) + (_meshes([EXTENDED / "meshes"]) if EXTENDED else [])
 
 
+def _board_names(root: Path) -> set[str]:
+    return {p.parent.parent.name for p in root.glob("gltf-ext/*/glTF*/*.gl[tb]*")}
+
+
+# The Khronos test boards the run has: this folder's small ones, and every one of PBRWARP_TEST_ASSETS.
+BOARDS = sorted(_board_names(IN_REPO) | (_board_names(EXTENDED) if EXTENDED else set()))
+
+
 def board(name: str) -> Path:
     """The model file of the Khronos test board ``name`` (``gltf-ext/<name>/glTF*/``): from
     PBRWARP_TEST_ASSETS when it holds the board, else this folder's copy (the small boards are
