@@ -68,6 +68,18 @@ def render_kernel(features):
                               f.brdf.metallic_mix == "gltf")
 
     @wp.func
+    def base_color_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
+        """The material's base colour at the hit: its factor times vertex colour and texture."""
+        base = wp.vec3(mat.base_color[0], mat.base_color[1], mat.base_color[2])
+        if wp.static(f.vertex_colors):
+            vertex_color = interpolate(scene.colors, h)
+            base = wp.cw_mul(base, wp.vec3(vertex_color[0], vertex_color[1], vertex_color[2]))
+        if wp.static(f.base_color_texture):
+            bc = texture_or_one(scene, mat.base_color_texture, uv)
+            base = wp.cw_mul(base, wp.vec3(bc[0], bc[1], bc[2]))
+        return base
+
+    @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
               dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3,
               n: wp.vec3, seed: int, stream: int, cache: ShadowCache, scale: wp.vec3, scale_material: int):
@@ -75,6 +87,9 @@ def render_kernel(features):
         normalization ``scale`` (diffuse_share_scale) and the material it was computed for,
         ``scale_material``, -1 for none: kept from pixel to pixel where it depends on the material
         alone)."""
+        if wp.static(f.unlit):
+            if mat.unlit != 0:  # KHR_materials_unlit: the base colour, in nits, and nothing else
+                return base_color_at(scene, h, mat, uv), cache, scale, scale_material
         radiance = wp.vec3(0.0)
         if wp.static(f.emission):
             radiance = mat.emissive
@@ -82,17 +97,11 @@ def render_kernel(features):
                 em = texture_or_one(scene, mat.emissive_texture, uv)
                 radiance = wp.cw_mul(radiance, wp.vec3(em[0], em[1], em[2]))
         if wp.static(shaded):
-            base = wp.vec3(mat.base_color[0], mat.base_color[1], mat.base_color[2])
-            if wp.static(f.vertex_colors):
-                vertex_color = interpolate(scene.colors, h)
-                base = wp.cw_mul(base, wp.vec3(vertex_color[0], vertex_color[1], vertex_color[2]))
+            base = base_color_at(scene, h, mat, uv)
             metallic = mat.metallic
             roughness = mat.roughness
             specular = mat.specular
             f0_dielectric = mat.f0_dielectric
-            if wp.static(f.base_color_texture):
-                bc = texture_or_one(scene, mat.base_color_texture, uv)
-                base = wp.cw_mul(base, wp.vec3(bc[0], bc[1], bc[2]))
             if wp.static(f.metallic_roughness_texture):
                 mr = texture_or_one(scene, mat.metallic_roughness_texture, uv)
                 roughness = roughness * mr[1]

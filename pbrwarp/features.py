@@ -39,6 +39,8 @@ class Features:
     normal_mapping: bool = True
     vertex_colors: bool = True
     emission: bool = True
+    # KHR_materials_unlit: materials whose radiance is their base colour
+    unlit: bool = True
     diffuse: bool = True
     specular: bool = True
     point_lights: bool = True
@@ -163,13 +165,17 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     for name, kind, label in (("point_lights", POINT, "point light"), ("directional_lights", DIRECTIONAL, "directional light"),
                               ("spot_lights", SPOT, "spot light")):
         add(name, count[kind], _count(count[kind], label) if count[kind] else f"no {label}s")
+    lit_mats = [m for m in mats if not m.unlit]
     if not scene.lights and scene.environment is None:
         add("diffuse", False, "no lights: only emission and the background")
         add("specular", False, "no lights: no reflection")
+    elif not lit_mats:
+        add("diffuse", False, "no diffuse: every material is unlit")
+        add("specular", False, "no specular lobe: every material is unlit")
     else:
-        diffuse = any(m.metallic < 1.0 or m.metallic_roughness_texture is not None for m in mats)
+        diffuse = any(m.metallic < 1.0 or m.metallic_roughness_texture is not None for m in lit_mats)
         add("diffuse", diffuse, f"{brdf.diffuse} diffuse" if diffuse else "no diffuse: every material is fully metallic")
-        specular = any(m.specular > 0.0 or m.metallic > 0.0 for m in mats)
+        specular = any(m.specular > 0.0 or m.metallic > 0.0 for m in lit_mats)
         lobe = (f"Cook-Torrance specular: {brdf.distribution} distribution, {brdf.geometry} geometry, {brdf.fresnel} "
                 f"Fresnel" if brdf.model == "microfacet" else f"legacy normalized {brdf.model} specular lobe")
         add("specular", specular, lobe if specular else "no specular lobe: every material has specular = 0 and metallic = 0")
@@ -218,6 +224,9 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
         add(name, present, why)
     present, why = slot("normal_texture", "normal map")
     add("normal_mapping", present, why + ("" if present else ": no tangent frames"))
+    unlit = sum(1 for m in mats if m.unlit)
+    add("unlit", unlit, f"unlit (KHR_materials_unlit): {_count(unlit, 'material')} show their base colour"
+        if unlit else "no unlit materials")
     emitters = sum(1 for m in mats if max(m.emissive) > 0.0)
     add("emission", emitters, f"emission: {_count(emitters, 'material')}" if emitters else "no emission: every emissive factor is 0")
     coloured = sum(1 for p in prims if p.colors is not None and not np.all(p.colors == 1.0))

@@ -591,6 +591,7 @@ class _Materials:
             double_sided=_boolean(spec.get("doubleSided", False), "doubleSided"),
             alpha_mode=spec.get("alphaMode", "OPAQUE"),
             alpha_cutoff=spec.get("alphaCutoff", 0.5),
+            unlit="KHR_materials_unlit" in ext,
             name=spec.get("name", ""),
             **textures,
         )
@@ -839,7 +840,7 @@ _EXTENSIONS = {
     "KHR_materials_pbrSpecularGlossiness": (IGNORED, "rendered with the material's metallic-roughness values"),
     "KHR_materials_sheen": (IGNORED, "rendered without sheen (fabrics look darker than they should)"),
     "KHR_materials_transmission": (IGNORED, "rendered opaque (nothing shows through)"),
-    "KHR_materials_unlit": (IGNORED, "shaded by the lights as a metallic-roughness material"),
+    "KHR_materials_unlit": (HONOURED, ""),
     "KHR_materials_variants": (IGNORED, "each primitive shows its default material"),
     "KHR_materials_volume": (IGNORED, "rendered without absorption inside the volume"),
     "KHR_mesh_quantization": (IGNORED, "its accessors are read unchecked (a valid file also requires it: refused)"),

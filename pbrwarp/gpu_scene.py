@@ -191,6 +191,7 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
         row.ior_eta = _float32_vector(mat.complex_ior[0], "Material.complex_ior n")
         row.ior_kappa = _float32_vector(mat.complex_ior[1], "Material.complex_ior k")
     row.alpha_mask = int(mat.alpha_mode == "MASK")
+    row.unlit = int(mat.unlit)
     slot_index = {slot: texture_slots[(id(tex), srgb)] if has_uvs else -1 for slot, tex, srgb in mat.textures()}
     row.base_color_texture = slot_index.get("base_color_texture", -1)
     row.metallic_roughness_texture = slot_index.get("metallic_roughness_texture", -1)

@@ -63,6 +63,11 @@ class Material(validate.Checked):
     - ``alpha_mode``: "OPAQUE" (default), "MASK" (cut out where base-colour alpha, times vertex and
       texture alpha, is below ``alpha_cutoff``, in [0, 1], default 0.5) or "BLEND" (rendered
       opaque).
+    - ``unlit``: KHR_materials_unlit's constant shading (default False). When True the surface's
+      radiance towards the eye is its base colour, times the base-colour texture and vertex
+      colour, in cd/m^2 (a white unlit surface is 1 nit, whatever lights the scene); lights,
+      environment, emission, normal and occlusion maps do not change it. It still casts shadows,
+      and ``alpha_mode`` and ``double_sided`` apply.
     - ``name``: for messages (default "").
     - ``complex_ior``: optional ``(n, k)``, the complex index of refraction n + ik of a metal,
       each an RGB triple (n > 0, k >= 0), e.g. from refractiveindex.info at 650, 550 and 450 nm.
@@ -90,6 +95,7 @@ class Material(validate.Checked):
     double_sided: bool = True
     alpha_mode: str = "OPAQUE"
     alpha_cutoff: float = 0.5
+    unlit: bool = False
     name: str = field(default="")
     complex_ior: tuple | None = None
 
@@ -106,6 +112,7 @@ class Material(validate.Checked):
         "alpha_cutoff": lambda material, value: validate.unit_interval(value, "Material.alpha_cutoff"),
         "alpha_mode": lambda material, value: _alpha_mode(value),
         "double_sided": lambda material, value: bool(value),
+        "unlit": lambda material, value: bool(value),
         "complex_ior": lambda material, value: None if value is None else _complex_ior(value),
         **{slot: (lambda material, value, slot=slot: Texture.wrap(value, f"Material.{slot}"))
            for slot, _ in TEXTURE_SLOTS},

@@ -22,7 +22,7 @@ MATERIAL_EXTENSIONS = {
     "KHR_materials_transmission": "rendered opaque", "KHR_materials_volume": "without absorption",
     "KHR_materials_sheen": "without sheen", "KHR_materials_clearcoat": "without the clear coat",
     "KHR_materials_iridescence": "without the thin-film", "KHR_materials_anisotropy": "isotropic",
-    "KHR_materials_unlit": "shaded by the lights", "KHR_materials_dispersion": "without dispersion",
+    "KHR_materials_dispersion": "without dispersion",
     "KHR_materials_diffuse_transmission": "rendered opaque",
     "KHR_materials_pbrSpecularGlossiness": "metallic-roughness values",
 }
@@ -290,9 +290,9 @@ BOARD_NOTES = {
     "MorphPrimitivesTest": ["morph targets"], "MultiUVTest": ["TEXCOORD_1"],
     "RecursiveSkeletons": ["animation", "skins"], "SheenCloth": ["KHR_materials_sheen"],
     "SimpleSkin": ["animation", "skins"], "SimpleSparseAccessor": [], "SpecularTest": [],
-    "TextureTransformMultiTest": ["KHR_materials_unlit", "KHR_materials_clearcoat", "TEXCOORD_1"],
+    "TextureTransformMultiTest": ["KHR_materials_clearcoat", "TEXCOORD_1"],
     "TransmissionRoughnessTest": ["KHR_materials_transmission", "KHR_materials_volume"],
-    "TransmissionTest": ["KHR_materials_transmission"], "UnlitTest": AssetFormatError,
+    "TransmissionTest": ["KHR_materials_transmission"], "UnlitTest": [],
 }
 
 
