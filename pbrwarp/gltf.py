@@ -28,7 +28,7 @@ import os
 import struct
 import urllib.parse
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,7 +38,7 @@ from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeE
 from .lights import DirectionalLight, PointLight, SpotLight
 from .load_limits import LoadLimits
 from .materials import Material
-from .primitive import Primitive, transform_primitive
+from .primitive import Primitive, transform_primitive, unit_rows
 from .tangents import generate_tangents
 from .textures import Texture, decode_rgba, open_image
 
@@ -49,11 +49,17 @@ _COMPONENT_TYPES = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4
 _INDEX_TYPES = (5121, 5123, 5125)
 _TYPE_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}  # the accessor types pbrwarp reads
 _TYPE_COMPONENTS = {**_TYPE_WIDTHS, "MAT2": 4, "MAT3": 9, "MAT4": 16}  # every type, e.g. skins' MAT4
+_READ_WIDTHS = {**_TYPE_WIDTHS, "MAT4": 16}  # MAT4 for skins' float inverse bind matrices (no padding)
+_MORPHED = ("POSITION", "NORMAL", "TANGENT")  # the morph target attributes pbrwarp applies
+_INSTANCING = "EXT_mesh_gpu_instancing"
+_SKIN_CHUNK = 1 << 16  # vertices skinned at once: bounds the (chunk, 4, 4) blended matrices
 _WRAP_MODES = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
-_TRIANGLES, _TRIANGLE_STRIP = 4, 5
+_TRIANGLES, _TRIANGLE_STRIP, _TRIANGLE_FAN = 4, 5, 6
+_TRIANGLE_MODES = (_TRIANGLES, _TRIANGLE_STRIP, _TRIANGLE_FAN)
 _MODES = range(7)  # POINTS .. TRIANGLE_FAN
 _SUPPORTED_EXTENSIONS = frozenset({
     "KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_specular", "KHR_materials_emissive_strength",
+    _INSTANCING, "KHR_mesh_quantization",
 })
 # glTF's default material (spec 3.9.6): everything 1, single-sided.
 _DEFAULT_MATERIAL = dict(base_color=(1.0, 1.0, 1.0, 1.0), metallic=1.0, roughness=1.0, double_sided=False)
@@ -286,9 +292,9 @@ class _Document:
         acc = self.element("accessors", index, what)
         what = f"accessor {index} ({what})"
         ctype, kind, count = acc.get("componentType"), acc.get("type"), acc.get("count")
-        width = _TYPE_WIDTHS.get(kind)
+        width = _READ_WIDTHS.get(kind)
         if width not in widths:
-            expected = " or ".join(k for k, w in _TYPE_WIDTHS.items() if w in widths)
+            expected = " or ".join(k for k, w in _READ_WIDTHS.items() if w in widths)
             raise self.error(f"{what} has type {kind!r}; expected {expected}")
         dtype = np.dtype(_COMPONENT_TYPES[ctype])
         if "bufferView" in acc:
@@ -360,6 +366,7 @@ class _PrimitiveData:
     tangents: np.ndarray | None
     colors: np.ndarray | None
     material: int | None
+    targets: list = field(default_factory=list)  # the primitive's morph targets, as in the JSON
 
 
 def _accessor_users(gltf: dict) -> dict[int, str]:
@@ -388,7 +395,7 @@ def _primitive_mode(doc: _Document, prim, where: str) -> int:
 
 
 def _primitive_size(doc: _Document, prim, where: str) -> tuple[int, int]:
-    """(vertices, triangles) of a triangle list or strip primitive, from its accessors' counts
+    """(vertices, triangles) of a triangle list, strip or fan primitive, from its accessors' counts
     (checked by _Document.check_accessor_sizes) before any of its data is read."""
     attrs = prim.get("attributes", {})
     if "POSITION" not in attrs:
@@ -397,7 +404,7 @@ def _primitive_size(doc: _Document, prim, where: str) -> tuple[int, int]:
     indices = vertices
     if "indices" in prim:
         indices = doc.element("accessors", prim["indices"], f"indices of {where}")["count"]
-    if _primitive_mode(doc, prim, where) == _TRIANGLE_STRIP:
+    if _primitive_mode(doc, prim, where) in (_TRIANGLE_STRIP, _TRIANGLE_FAN):
         return vertices, max(indices - 2, 0)
     return vertices, indices // 3
 
@@ -407,7 +414,7 @@ def _read_primitives(doc: _Document) -> dict[tuple[int, int], _PrimitiveData]:
     out = {}
     for mi, mesh in enumerate(doc.json.get("meshes", [])):
         for pi, prim in enumerate(mesh.get("primitives", [])):
-            if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in (_TRIANGLES, _TRIANGLE_STRIP):
+            if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in _TRIANGLE_MODES:
                 out[mi, pi] = _read_primitive(doc, (mi, pi), prim)
     return out
 
@@ -446,11 +453,13 @@ def _read_primitive(doc: _Document, key, prim) -> _PrimitiveData:
         key=key, positions=positions, faces=_primitive_faces(doc, prim, n, where),
         normals=attribute("NORMAL", (3,)), uvs=attribute("TEXCOORD_0", (2,)),
         tangents=attribute("TANGENT", (4,)), colors=colors, material=material,
+        targets=_morph_targets(doc, prim, n, where),
     )
 
 
 def _primitive_faces(doc: _Document, prim, n: int, where: str) -> np.ndarray:
-    """(F, 3) vertex indices of a triangle list or strip, every index checked against ``n``."""
+    """(F, 3) vertex indices of a triangle list, strip or fan, every index checked against ``n``.
+    A fan of fewer than 3 vertices has no triangles."""
     if "indices" in prim:
         acc = doc.element("accessors", prim["indices"], f"indices of {where}")
         if acc.get("componentType") not in _INDEX_TYPES or acc.get("normalized", False):
@@ -467,9 +476,199 @@ def _primitive_faces(doc: _Document, prim, n: int, where: str) -> np.ndarray:
         i = np.arange(len(idx) - 2)
         odd = i % 2  # glTF 3.7.2.1: triangle i is (i, i + 1 + odd, i + 2 - odd)
         return np.column_stack([idx[i], idx[i + 1 + odd], idx[i + 2 - odd]])
+    if prim.get("mode", _TRIANGLES) == _TRIANGLE_FAN:
+        i = np.arange(max(len(idx) - 2, 0))  # glTF 3.7.2.1: triangle i is (i + 1, i + 2, 0)
+        return np.column_stack([idx[i + 1], idx[i + 2], np.full(len(i), idx[0] if len(idx) else 0)])
     if len(idx) % 3:
         raise doc.error(f"{where} has {len(idx)} indices, not a multiple of 3")
     return idx.reshape(-1, 3)
+
+
+# ---------------------------------------------------------------------------- morph targets, skins, instancing
+def _morph_targets(doc: _Document, prim, n: int, where: str) -> list[dict]:
+    """A primitive's morph targets (glTF 2.0 "Morph Targets"), each the accessors of the POSITION,
+    NORMAL and TANGENT displacements it holds, checked against the primitive's attributes and
+    vertex count; they are read only when a weight applies them (_morphed). Other displaced
+    attributes (TEXCOORD_n, COLOR_n) are named in a warning."""
+    targets = prim.get("targets", [])
+    if not isinstance(targets, list):
+        raise doc.error(f"{where} targets must be an array, got {targets!r}")
+    attrs = prim.get("attributes", {})
+    out, ignored = [], set()
+    for ti, target in enumerate(targets):
+        if not isinstance(target, dict):
+            raise doc.error(f"{where} morph target {ti} is not an object")
+        for name, acc in target.items():
+            if name not in _MORPHED:
+                ignored.add(name)
+                continue
+            what = f"{name} of {where} morph target {ti}"
+            if name not in attrs:
+                raise doc.error(f"{what} displaces an attribute the primitive does not have")
+            count = doc.element("accessors", acc, what)["count"]
+            if count != n:
+                raise doc.error(f"{where} has {n} positions but {count} displacements in {what}")
+        out.append({name: acc for name, acc in target.items() if name in _MORPHED})
+    if ignored:
+        warnings.warn(f"{doc.path}: {where}: morph targets of {', '.join(sorted(ignored))} ignored; pbrwarp "
+                      "applies POSITION, NORMAL and TANGENT displacements")
+    return out
+
+
+def _morph_weights(doc: _Document, node: dict, index: int, data: _PrimitiveData) -> tuple[float, ...]:
+    """The default weights of a primitive's morph targets on node ``index``: ``node.weights``,
+    else ``mesh.weights``, else zeros (glTF 2.0 "Morph Targets"); one per target."""
+    mesh = doc.json["meshes"][node["mesh"]]
+    source = f"node {index}" if "weights" in node else f"mesh {node['mesh']}"
+    weights = node.get("weights", mesh.get("weights"))
+    if weights is None:
+        return (0.0,) * len(data.targets)
+    where = f"mesh {data.key[0]} primitive {data.key[1]}"
+    if not isinstance(weights, list) or len(weights) != len(data.targets):
+        count = len(weights) if isinstance(weights, list) else weights
+        raise doc.error(f"{source} has {count} morph weights, but {where} has {len(data.targets)} morph "
+                        "targets (glTF asks for one weight per target)")
+    return tuple(float(w) for w in _numbers(doc, weights, len(weights), f"{source} weights"))
+
+
+def _morphed(doc: _Document, data: _PrimitiveData, weights: tuple) -> _PrimitiveData:
+    """``data`` with its morph targets applied at ``weights``: attribute + sum of weight x
+    displacement, normals and tangent directions renormalized (tangents keep their handedness)."""
+    where = f"mesh {data.key[0]} primitive {data.key[1]}"
+    if all(w == 0.0 for w in weights):
+        return data
+    morphed = {"POSITION": data.positions, "NORMAL": data.normals,
+               "TANGENT": None if data.tangents is None else data.tangents[:, :3]}
+    for ti, (weight, target) in enumerate(zip(weights, data.targets)):
+        if weight == 0.0:
+            continue
+        for name, acc in target.items():
+            what = f"{name} of {where} morph target {ti}"
+            delta = doc.accessor(acc, what, (3,)).astype(np.float64)
+            if not np.all(np.isfinite(delta)):
+                raise doc.error(f"{what} has NaN or Inf displacements")
+            morphed[name] = morphed[name] + weight * delta
+    normals = None if data.normals is None else unit_rows(morphed["NORMAL"])
+    tangents = None
+    if data.tangents is not None:
+        tangents = np.column_stack([unit_rows(morphed["TANGENT"]), data.tangents[:, 3]])
+    return replace(data, positions=morphed["POSITION"], normals=normals, tangents=tangents)
+
+
+def _joint_matrices(doc: _Document, node: dict, index: int, worlds: dict) -> np.ndarray:
+    """(J, 4, 4) joint matrices of node ``index``'s skin: world(joint) x inverseBindMatrix
+    (identity when the skin has none), glTF 2.0 "Skins"."""
+    skin_index = node["skin"]
+    skin = doc.element("skins", skin_index, f"node {index}")
+    joints = skin.get("joints")
+    if not isinstance(joints, list) or not joints:
+        raise doc.error(f"skin {skin_index} has no joints (a non-empty array of node indices is required)")
+    for joint in joints:
+        doc.element("nodes", joint, f"skin {skin_index} joints")
+        if joint not in worlds:
+            raise doc.error(f"skin {skin_index} joint node {joint} is not in the scene being loaded; glTF asks "
+                            "for a skin's joints in the scene of the node it skins")
+    posed = np.stack([worlds[joint] for joint in joints])
+    if "inverseBindMatrices" not in skin:
+        return posed
+    what = f"inverseBindMatrices of skin {skin_index}"
+    acc = doc.element("accessors", skin["inverseBindMatrices"], what)
+    if acc.get("componentType") != 5126 or acc["count"] < len(joints):
+        raise doc.error(f"{what} must be {len(joints)} or more float MAT4 matrices, got {acc['count']} of "
+                        f"componentType {acc.get('componentType')!r}")
+    inverse_bind = doc.accessor(skin["inverseBindMatrices"], what, (16,))[:len(joints)]
+    if not np.all(np.isfinite(inverse_bind)):
+        raise doc.error(f"{what} has NaN or Inf entries")
+    return posed @ inverse_bind.reshape(-1, 4, 4).transpose(0, 2, 1)  # glTF matrices are column-major
+
+
+def _skin_influences(doc: _Document, prim: dict, n: int, joints: int, where: str) -> list:
+    """(joint indices, weights) of each JOINTS_k / WEIGHTS_k pair of a skinned primitive, each
+    (n, 4), the indices checked against the skin's ``joints`` joints."""
+    attrs = prim.get("attributes", {})
+    sets, k = [], 0
+    while f"JOINTS_{k}" in attrs or f"WEIGHTS_{k}" in attrs:
+        names = (f"JOINTS_{k}", f"WEIGHTS_{k}")
+        if not all(name in attrs for name in names):
+            raise doc.error(f"{where} has only one of {names[0]} and {names[1]}")
+        index_acc, weight_acc = (doc.element("accessors", attrs[name], f"{name} of {where}") for name in names)
+        for name, acc in zip(names, (index_acc, weight_acc)):
+            if acc["count"] != n:
+                raise doc.error(f"{where} has {n} positions but {acc['count']} {name} values")
+        if index_acc.get("componentType") not in (5121, 5123) or index_acc.get("normalized", False):
+            raise doc.error(f"{names[0]} of {where} must be unsigned bytes or shorts, "
+                            f"got componentType {index_acc.get('componentType')!r}")
+        indices = doc.accessor(attrs[names[0]], f"{names[0]} of {where}", (4,)).astype(np.int64)
+        if n and int(indices.max()) >= joints:
+            raise doc.error(f"{names[0]} of {where} names joint {int(indices.max())}, but its skin has {joints} joints")
+        weights = doc.accessor(attrs[names[1]], f"{names[1]} of {where}", (4,)).astype(np.float64)
+        if not np.all(np.isfinite(weights)):
+            raise doc.error(f"{names[1]} of {where} has NaN or Inf weights")
+        sets.append((indices, weights))
+        k += 1
+    if not sets:
+        raise doc.error(f"{where} is on a node with a skin but has no JOINTS_0 and WEIGHTS_0 attributes")
+    return sets
+
+
+def _skinned(data: _PrimitiveData, matrices: np.ndarray, influences: list) -> _PrimitiveData:
+    """``data`` posed by linear blend skinning (glTF 2.0 "Skinned Mesh Attributes"): each vertex
+    moved by its weighted sum of joint matrices M, normals by M's inverse transpose (the
+    cofactor matrix times the sign of det M, which stays defined where M is singular), tangent
+    directions by M; normals and tangents renormalized."""
+    n = len(data.positions)
+    positions = np.empty((n, 3))
+    normals = None if data.normals is None else np.empty((n, 3))
+    tangents = None if data.tangents is None else data.tangents.copy()
+    for start in range(0, n, _SKIN_CHUNK):
+        rows = slice(start, start + _SKIN_CHUNK)
+        blend = sum(np.einsum("vk,vkij->vij", weights[rows], matrices[indices[rows]]) for indices, weights in influences)
+        linear = blend[:, :3, :3]
+        positions[rows] = np.einsum("vij,vj->vi", linear, data.positions[rows]) + blend[:, :3, 3]
+        if normals is not None:
+            c0, c1, c2 = linear[:, :, 0], linear[:, :, 1], linear[:, :, 2]
+            cofactor = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=2)
+            sign = np.sign(np.einsum("vi,vi->v", c0, cofactor[:, :, 0]))
+            normals[rows] = np.einsum("vij,vj->vi", cofactor, data.normals[rows]) * sign[:, None]
+        if tangents is not None:
+            tangents[rows, :3] = np.einsum("vij,vj->vi", linear, data.tangents[rows, :3])
+    if normals is not None:
+        normals = unit_rows(normals)
+    if tangents is not None:
+        tangents[:, :3] = unit_rows(tangents[:, :3])
+    return replace(data, positions=positions, normals=normals, tangents=tangents)
+
+
+def _instance_count(doc: _Document, node: dict, index: int) -> int | None:
+    """How many copies EXT_mesh_gpu_instancing places with node ``index`` (None without the
+    extension), from its accessors' counts in the JSON alone."""
+    ext = node.get("extensions", {}).get(_INSTANCING)
+    if ext is None:
+        return None
+    attrs = ext.get("attributes", {}) if isinstance(ext, dict) else None
+    if not isinstance(attrs, dict) or not any(name in attrs for name in ("TRANSLATION", "ROTATION", "SCALE")):
+        raise doc.error(f"node {index} {_INSTANCING} has no TRANSLATION, ROTATION or SCALE attribute")
+    counts = {name: doc.element("accessors", attrs[name], f"node {index} {_INSTANCING} {name}")["count"]
+              for name in ("TRANSLATION", "ROTATION", "SCALE") if name in attrs}
+    if len(set(counts.values())) > 1:
+        raise doc.error(f"node {index} {_INSTANCING} attributes have different counts {counts}")
+    return next(iter(counts.values()))
+
+
+def _instance_matrices(doc: _Document, node: dict, index: int) -> list[np.ndarray]:
+    """The local matrices (translation x rotation x scale) of node ``index``'s
+    EXT_mesh_gpu_instancing instances, applied before the node's own transform; [identity]
+    without the extension. Their count has been checked against LoadLimits (_check_instancing)."""
+    count = _instance_count(doc, node, index)
+    if count is None:
+        return [np.eye(4)]
+    attrs = node["extensions"][_INSTANCING]["attributes"]
+    trs = {}
+    for name, width in (("TRANSLATION", 3), ("ROTATION", 4), ("SCALE", 3)):
+        if name in attrs:
+            trs[name.lower()] = doc.accessor(attrs[name], f"node {index} {_INSTANCING} {name}", (width,)).tolist()
+    return [_local_matrix(doc, {key: values[k] for key, values in trs.items()}, f"{index} instance {k}")
+            for k in range(count)]
 
 
 class _Builder:
@@ -479,39 +678,60 @@ class _Builder:
         self.doc = doc
         self.data = data
         self.materials = _Materials(doc)
-        self._local: dict[tuple[int, int], Primitive] = {}
+        self._local: dict[tuple, Primitive] = {}  # (mesh, primitive), morph weights -> Primitive
 
     def primitives(self, nodes: list) -> list[Primitive]:
         """The Primitives the walked ``nodes`` (_scene_nodes) place, named after their node (and
         ``/k`` for primitive k of a mesh with several)."""
         out, skipped = [], 0
         names = _node_names(self.doc)
+        worlds = dict(nodes)
         for index, world in nodes:
             node = self.doc.json["nodes"][index]
             if "mesh" not in node:
                 continue
             prims = self.doc.json["meshes"][node["mesh"]].get("primitives", [])
+            instances = _instance_matrices(self.doc, node, index)
             for pi in range(len(prims)):
                 data = self.data.get((node["mesh"], pi))
                 if data is None or len(data.faces) == 0:
                     skipped += 1
                     continue
-                try:
-                    world_prim = transform_primitive(self._local_primitive(data), world)
-                except InputError as err:
-                    raise self.doc.error(f"node {index}: {err}") from None
-                world_prim.name = names[index] if len(prims) == 1 else f"{names[index]}/{pi}"
-                out.append(world_prim)
+                posed, placement = self._posed(node, index, data, world, worlds)
+                name = names[index] if len(prims) == 1 else f"{names[index]}/{pi}"
+                for k, instance in enumerate(instances):
+                    try:
+                        world_prim = transform_primitive(posed, placement @ instance)
+                    except InputError as err:
+                        raise self.doc.error(f"node {index}: {err}") from None
+                    world_prim.name = name if len(instances) == 1 else f"{name}#{k}"
+                    out.append(world_prim)
         if skipped:
-            warnings.warn(f"{self.doc.path}: {skipped} placed primitive(s) without triangles ignored (points, lines, "
-                          "triangle fans or empty ones: pbrwarp renders triangle lists and strips)")
+            warnings.warn(f"{self.doc.path}: {skipped} placed primitive(s) without triangles ignored (points, lines "
+                          "or empty ones: pbrwarp renders triangle lists, strips and fans)")
         return out
 
-    def _local_primitive(self, data: _PrimitiveData) -> Primitive:
-        """The Primitive of one glTF primitive in its mesh's space, shared by its instances."""
-        if data.key not in self._local:
-            self._local[data.key] = self._from_data(data)
-        return self._local[data.key]
+    def _posed(self, node: dict, index: int, data: _PrimitiveData, world, worlds: dict) -> tuple:
+        """(Primitive, matrix that places it) for one primitive of node ``index``: the primitive
+        at the node's morph weights in its mesh's space, placed by the node's world matrix; or,
+        on a node with a skin, posed by the skin's joints in world space, placed by the identity
+        (glTF ignores a skinned mesh node's own transform)."""
+        weights = _morph_weights(self.doc, node, index, data)
+        if "skin" not in node:
+            return self._local_primitive(data, weights), world
+        matrices = _joint_matrices(self.doc, node, index, worlds)
+        where = f"mesh {data.key[0]} primitive {data.key[1]}"
+        prim = self.doc.json["meshes"][data.key[0]]["primitives"][data.key[1]]
+        influences = _skin_influences(self.doc, prim, len(data.positions), len(matrices), where)
+        return self._from_data(_skinned(_morphed(self.doc, data, weights), matrices, influences)), np.eye(4)
+
+    def _local_primitive(self, data: _PrimitiveData, weights: tuple) -> Primitive:
+        """The Primitive of one glTF primitive in its mesh's space at morph ``weights``, shared
+        by the nodes that place it with those weights."""
+        key = (data.key, weights)
+        if key not in self._local:
+            self._local[key] = self._from_data(_morphed(self.doc, data, weights))
+        return self._local[key]
 
     def _from_data(self, data: _PrimitiveData) -> Primitive:
         if data.material is None:
@@ -684,7 +904,8 @@ def _second_visit(index: int, parent: int | None, parents: dict) -> str:
 
 
 def _check_instancing(doc: _Document, nodes: list):
-    """The primitives, vertices and triangles the scene's mesh nodes place, counted from the
+    """The primitives, vertices and triangles the scene's mesh nodes place (times the copies
+    EXT_mesh_gpu_instancing makes of a node), counted from the
     JSON before any mesh is read or copied, against LoadLimits."""
     limits = doc.limits
     sizes: dict[int, tuple[int, int, int]] = {}  # mesh -> (primitives, vertices, triangles)
@@ -693,16 +914,18 @@ def _check_instancing(doc: _Document, nodes: list):
         node = doc.json["nodes"][index]
         if "mesh" not in node:
             continue
+        copies = _instance_count(doc, node, index)
+        copies = 1 if copies is None else copies
         mi = node["mesh"]
         if mi not in sizes:
             mesh = doc.element("meshes", mi, f"node {index}")
             prims = mesh.get("primitives", [])
             counts = [_primitive_size(doc, prim, f"mesh {mi} primitive {pi}") for pi, prim in enumerate(prims)
-                      if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in (_TRIANGLES, _TRIANGLE_STRIP)]
+                      if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in _TRIANGLE_MODES]
             sizes[mi] = (len(prims), sum(c[0] for c in counts), sum(c[1] for c in counts))
-        instances += sizes[mi][0]
-        vertices += sizes[mi][1]
-        triangles += sizes[mi][2]
+        instances += sizes[mi][0] * copies
+        vertices += sizes[mi][1] * copies
+        triangles += sizes[mi][2] * copies
         for total, field_name, noun in ((instances, "max_instances", "mesh primitives"),
                                         (vertices, "max_vertices", "vertices"), (triangles, "max_triangles", "triangles")):
             limit = getattr(limits, field_name)
