@@ -8,15 +8,19 @@ where a general scene graph does not bound its work (docs/loading.md).
 
 Supported: .glb and .gltf (buffers and images embedded, as ``data:`` URIs or as files inside the
 model's folder); accessors of every component type, normalized or not, interleaved (byteStride)
-and sparse; triangle lists and strips; PNG and JPEG textures (and WebP, GIF, BMP, TGA);
-samplers' wrap modes; KHR_texture_transform, KHR_materials_specular (specularFactor),
-KHR_materials_emissive_strength, KHR_lights_punctual; perspective cameras.
+and sparse, with KHR_mesh_quantization's integer attributes; triangle lists, strips and fans;
+morph targets at their default weights (POSITION, NORMAL and TANGENT); skins posed by the node
+graph's own transforms (the pose a viewer shows before any animation plays);
+EXT_mesh_gpu_instancing, whose instances are expanded into copies; PNG and JPEG textures (and
+WebP, GIF, BMP, TGA); samplers' wrap modes; KHR_texture_transform, KHR_materials_specular
+(specularFactor), KHR_materials_emissive_strength, KHR_lights_punctual; perspective cameras.
 
 Not supported: TEXCOORD_1 (textures that ask for it are sampled with TEXCOORD_0, with a
 warning), sampler filters (pbrwarp picks its own), specular colour and specular/other extension
-textures, light ``range``, orthographic cameras (skipped with a warning), skins, morph targets,
-animations, points, lines and triangle fans (skipped with a warning), and any extension listed
-in ``extensionsRequired`` other than the ones above (an error, as glTF asks).
+textures, light ``range``, orthographic cameras (skipped with a warning), morph targets of
+TEXCOORD_n and COLOR_n (ignored with a warning), animations, points and lines (skipped with a
+warning), and any extension listed in ``extensionsRequired`` other than the ones above (an
+error, as glTF asks).
 """
 
 from __future__ import annotations
