@@ -135,6 +135,7 @@ class _Document:
         self.roots = roots
         self.limits = LoadLimits.of(limits)
         self._texels = 0  # texels of the images decoded so far
+        self._pose_values = 0  # vertex values read to pose meshes so far (_charge_pose_read)
         with open(path, "rb") as f:
             raw = f.read()
         if raw[:4] == _GLB_MAGIC:
@@ -548,6 +549,7 @@ def _morphed(doc: _Document, data: _PrimitiveData, weights: tuple) -> _Primitive
             continue
         for name, acc in target.items():
             what = f"{name} of {where} morph target {ti}"
+            _charge_pose_read(doc, acc, what)
             delta = doc.accessor(acc, what, (3,)).astype(np.float64)
             if not np.all(np.isfinite(delta)):
                 raise doc.error(f"{what} has NaN or Inf displacements")
@@ -557,6 +559,17 @@ def _morphed(doc: _Document, data: _PrimitiveData, weights: tuple) -> _Primitive
     if data.tangents is not None:
         tangents = np.column_stack([unit_rows(morphed["TANGENT"]), data.tangents[:, 3]])
     return replace(data, positions=morphed["POSITION"], normals=normals, tangents=tangents)
+
+
+def _charge_pose_read(doc: _Document, accessor: int, what: str, per_element: int = 1):
+    """Count the elements of ``accessor`` (morph displacements, skin joints, weights and
+    matrices) against ``LoadLimits.max_vertices`` before it is read to pose a mesh. Many targets,
+    influence sets or nodes may name one accessor, so these reads are not bounded by the file's
+    size as the mesh data itself is; this bounds them."""
+    doc._pose_values += doc.json["accessors"][accessor]["count"] * per_element
+    if doc._pose_values > doc.limits.max_vertices:
+        raise doc.error(f"posing its meshes (morph targets, skins) reads more than the {doc.limits.max_vertices} "
+                        f"vertex values of LoadLimits.max_vertices; the limit is passed at {what}")
 
 
 def _joint_matrices(doc: _Document, node: dict, index: int, worlds: dict) -> np.ndarray:
@@ -580,6 +593,7 @@ def _joint_matrices(doc: _Document, node: dict, index: int, worlds: dict) -> np.
     if acc.get("componentType") != 5126 or acc["count"] < len(joints):
         raise doc.error(f"{what} must be {len(joints)} or more float MAT4 matrices, got {acc['count']} of "
                         f"componentType {acc.get('componentType')!r}")
+    _charge_pose_read(doc, skin["inverseBindMatrices"], what, per_element=4)  # a MAT4 holds four VEC4s
     inverse_bind = doc.accessor(skin["inverseBindMatrices"], what, (16,))[:len(joints)]
     if not np.all(np.isfinite(inverse_bind)):
         raise doc.error(f"{what} has NaN or Inf entries")
@@ -602,6 +616,12 @@ def _skin_influences(doc: _Document, prim: dict, n: int, joints: int, where: str
         if index_acc.get("componentType") not in (5121, 5123) or index_acc.get("normalized", False):
             raise doc.error(f"{names[0]} of {where} must be unsigned bytes or shorts, "
                             f"got componentType {index_acc.get('componentType')!r}")
+        if weight_acc.get("componentType") != 5126 and not (
+                weight_acc.get("componentType") in (5121, 5123) and weight_acc.get("normalized", False)):
+            raise doc.error(f"{names[1]} of {where} must be floats or normalized unsigned bytes or shorts, "
+                            f"got componentType {weight_acc.get('componentType')!r}")
+        for name in names:
+            _charge_pose_read(doc, attrs[name], f"{name} of {where}")
         indices = doc.accessor(attrs[names[0]], f"{names[0]} of {where}", (4,)).astype(np.int64)
         if n and int(indices.max()) >= joints:
             raise doc.error(f"{names[0]} of {where} names joint {int(indices.max())}, but its skin has {joints} joints")
@@ -920,6 +940,9 @@ def _check_instancing(doc: _Document, nodes: list):
             continue
         copies = _instance_count(doc, node, index)
         copies = 1 if copies is None else copies
+        if copies > limits.max_instances:
+            raise doc.error(f"node {index} places {copies} {_INSTANCING} instances, more than the "
+                            f"{limits.max_instances} of LoadLimits.max_instances")
         mi = node["mesh"]
         if mi not in sizes:
             mesh = doc.element("meshes", mi, f"node {index}")

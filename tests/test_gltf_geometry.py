@@ -148,6 +148,17 @@ def test_morph_weight_mismatch_is_a_clear_error(tmp_path, mesh_weights, node_wei
         load_gltf(morph_file(tmp_path, mesh_weights, node_weights))
 
 
+def test_one_accessor_named_by_many_targets_is_read_within_the_vertex_limit(tmp_path):
+    """Targets may share an accessor, so what morphing reads is not bounded by the file's size:
+    it counts against LoadLimits.max_vertices before each displacement is read."""
+    path = morph_file(tmp_path, [1.0] * 1000, targets=lambda b: [{"POSITION": b.accessor(DP[0], "VEC3")}] * 1000)
+    (prim,) = load_gltf(path).primitives
+    np.testing.assert_allclose(prim.positions, QUAD + 1000 * DP[0].astype(np.float64), rtol=1e-9, atol=1e-9)
+    with pytest.raises(pw.AssetFormatError, match="reads more than the 3999 vertex values of LoadLimits.max_vertices; "
+                                                  "the limit is passed at POSITION of mesh 0 primitive 0 morph target 999"):
+        load_gltf(path, limits=pw.LoadLimits(max_vertices=3999))
+
+
 def test_morph_target_of_a_missing_attribute_or_count_is_an_error(tmp_path):
     with pytest.raises(pw.AssetFormatError, match="TANGENT of mesh 0 primitive 0 morph target 0 displaces an attribute"):
         load_gltf(morph_file(tmp_path, [1.0], targets=lambda b: [{"TANGENT": b.accessor(DP[0], "VEC3")}]))
@@ -164,10 +175,11 @@ SKIN_JOINTS = np.array([[0, 1, 0, 0], [1, 0, 0, 0], [0, 1, 0, 0], [0, 1, 0, 0]])
 SKIN_WEIGHTS = np.array([[1, 0, 0, 0], [1, 0, 0, 0], [0.5, 0.5, 0, 0], [0.25, 0.75, 0, 0]], np.float32)
 
 
-def skin_file(tmp_path, joints=SKIN_JOINTS, inverse_bind=True, mesh_node=None):
+def skin_file(tmp_path, joints=SKIN_JOINTS, inverse_bind=True, mesh_node=None, weights=(SKIN_WEIGHTS, 5126, False)):
     b = Builder()
     attrs = {"POSITION": b.accessor(SKIN_POSITIONS, "VEC3"), "NORMAL": b.accessor(SKIN_NORMALS, "VEC3"),
-             "JOINTS_0": b.accessor(joints, "VEC4", 5121), "WEIGHTS_0": b.accessor(SKIN_WEIGHTS, "VEC4")}
+             "JOINTS_0": b.accessor(joints, "VEC4", 5121),
+             "WEIGHTS_0": b.accessor(weights[0], "VEC4", weights[1], normalized=weights[2])}
     indices = b.accessor(np.array([0, 1, 2, 0, 2, 3]), "SCALAR", 5123)
     b.json["meshes"].append({"primitives": [{"attributes": attrs, "indices": indices}]})
     b.json["nodes"] = [{"children": [1]}, {"translation": [0, 1, 0], "rotation": quaternion_z(90)},
@@ -181,11 +193,11 @@ def skin_file(tmp_path, joints=SKIN_JOINTS, inverse_bind=True, mesh_node=None):
     return b.glb(tmp_path / "skin.glb")
 
 
-def expected_skin(joint_matrices):
+def expected_skin(joint_matrices, weights=SKIN_WEIGHTS):
     """glTF 2.0 "Skinned Mesh Attributes": vertex = sum_i w_i M_{j_i} v, normals by the inverse
     transpose of that blended matrix."""
     positions, normals = [], []
-    for v, n, j, w in zip(SKIN_POSITIONS, SKIN_NORMALS, SKIN_JOINTS, SKIN_WEIGHTS):
+    for v, n, j, w in zip(SKIN_POSITIONS, SKIN_NORMALS, SKIN_JOINTS, weights):
         m = sum(float(wi) * joint_matrices[ji] for ji, wi in zip(j, w))
         positions.append(apply(m, [v])[0])
         normals.append(unit(np.linalg.inv(m[:3, :3]).T @ n))
@@ -211,6 +223,16 @@ def test_skin_without_inverse_bind_matrices_uses_identity(tmp_path):
     (prim,) = load_gltf(skin_file(tmp_path, inverse_bind=False)).primitives
     positions, _ = expected_skin([np.eye(4), translation([0, 1, 0]) @ rotation_z(90)])
     np.testing.assert_allclose(prim.positions, positions, atol=1e-6)
+
+
+def test_normalized_byte_weights_decode_and_unnormalized_ones_are_refused(tmp_path):
+    quantized = np.round(SKIN_WEIGHTS * 255).astype(np.uint8)
+    (prim,) = load_gltf(skin_file(tmp_path, weights=(quantized, 5121, True))).primitives
+    joint1 = translation([0, 1, 0]) @ rotation_z(90)
+    positions, _ = expected_skin([np.eye(4), joint1 @ translation([0, -1, 0])], quantized / 255.0)
+    np.testing.assert_allclose(prim.positions, positions, atol=1e-6)
+    with pytest.raises(pw.AssetFormatError, match="WEIGHTS_0 of mesh 0 primitive 0 must be floats or normalized"):
+        load_gltf(skin_file(tmp_path, weights=(quantized, 5121, False)))
 
 
 def test_joint_index_outside_the_skin_is_refused(tmp_path):
@@ -257,9 +279,15 @@ def test_instance_count_is_checked_against_the_limits_before_reading(tmp_path, m
     read = []
     original = _Document.accessor
     monkeypatch.setattr(_Document, "accessor", lambda self, index, *a, **k: read.append(index) or original(self, index, *a, **k))
-    with pytest.raises(pw.AssetFormatError, match="more than 65536 mesh primitives .LoadLimits.max_instances"):
+    with pytest.raises(pw.AssetFormatError, match="node 0 places 16777216 EXT_mesh_gpu_instancing instances, "
+                                                  "more than the 65536 of LoadLimits.max_instances"):
         load_gltf(path)
     assert read == []  # refused from the JSON, before any accessor was read
+    # The same copies of a mesh that has no primitives to copy are refused too.
+    b.json["meshes"][0]["primitives"] = []
+    with pytest.raises(pw.AssetFormatError, match="LoadLimits.max_instances"):
+        load_gltf(b.glb(tmp_path / "empty.glb"))
+    assert read == []
 
 
 def test_instances_count_against_the_triangle_limit(tmp_path):
