@@ -235,6 +235,24 @@ def test_normalized_byte_weights_decode_and_unnormalized_ones_are_refused(tmp_pa
         load_gltf(skin_file(tmp_path, weights=(quantized, 5121, False)))
 
 
+@pytest.mark.parametrize("edit, message", [
+    (lambda j: j["scenes"][0].update(nodes=[2]), "skin 0 joint node 0 is not in the scene being loaded"),
+    (lambda j: j["skins"][0].update(joints=[]), "skin 0 has no joints"),
+    (lambda j: j["accessors"][j["skins"][0]["inverseBindMatrices"]].update(count=1),
+     "inverseBindMatrices of skin 0 must be 2 or more float MAT4 matrices, got 1"),
+    (lambda j: j["meshes"][0]["primitives"][0]["attributes"].pop("WEIGHTS_0"), "has only one of JOINTS_0 and WEIGHTS_0"),
+    (lambda j: [j["meshes"][0]["primitives"][0]["attributes"].pop(k) for k in ("JOINTS_0", "WEIGHTS_0")],
+     "is on a node with a skin but has no JOINTS_0 and WEIGHTS_0"),
+])
+def test_inconsistent_skins_are_clear_errors(tmp_path, edit, message):
+    doc = _Document(str(skin_file(tmp_path)))
+    edit(doc.json)
+    b = Builder()
+    b.json, b.bin = doc.json, bytearray(doc.glb_bin)
+    with pytest.raises(pw.AssetFormatError, match=message):
+        load_gltf(b.glb(tmp_path / "edited.glb"))
+
+
 def test_joint_index_outside_the_skin_is_refused(tmp_path):
     joints = SKIN_JOINTS.copy()
     joints[3, 1] = 7
@@ -268,6 +286,18 @@ def test_instances_are_copies_at_their_trs_before_the_node_transform(tmp_path):
         local = translation(t[k]) @ rotation_z(90 * k) @ np.diag([*s[k], 1.0])
         np.testing.assert_allclose(prim.positions, apply(translation([0, 0, 10]) @ local, QUAD), atol=1e-6)
         np.testing.assert_array_equal(prim.faces, [[0, 1, 2], [0, 2, 3]])
+
+
+def test_quantized_instance_rotations_decode(tmp_path):
+    """EXT_mesh_gpu_instancing allows normalized signed shorts for ROTATION."""
+    b = Builder()
+    mesh = b.quad()
+    q = np.round(np.array([[0, 0, 0, 1], quaternion_z(90)]) * 32767).astype(np.int16)
+    attrs = {"TRANSLATION": b.accessor(np.zeros((2, 3), np.float32), "VEC3"),
+             "ROTATION": b.accessor(q, "VEC4", 5122, normalized=True)}
+    b.node(mesh=mesh, extensions={"EXT_mesh_gpu_instancing": {"attributes": attrs}})
+    prims = load_gltf(b.glb(tmp_path / "rotations.glb")).primitives
+    np.testing.assert_allclose(prims[1].positions, apply(rotation_z(90), QUAD), atol=1e-4)
 
 
 def test_instance_count_is_checked_against_the_limits_before_reading(tmp_path, monkeypatch):
