@@ -8,21 +8,25 @@ where a general scene graph does not bound its work (docs/loading.md).
 
 Supported: .glb and .gltf (buffers and images embedded, as ``data:`` URIs or as files inside the
 model's folder); accessors of every component type, normalized or not, interleaved (byteStride)
-and sparse; triangle lists and strips; PNG and JPEG textures (and WebP, GIF, BMP, TGA);
-samplers' wrap modes and LINEAR filtering; metallic-roughness materials with alphaMode OPAQUE and
-MASK; KHR_texture_transform, KHR_materials_specular, KHR_materials_ior,
-KHR_materials_emissive_strength, KHR_lights_punctual (but ``range``); perspective cameras.
+and sparse, with KHR_mesh_quantization's integer attributes; triangle lists, strips and fans;
+morph targets at their default weights (POSITION, NORMAL and TANGENT); skins posed by the node
+graph's own transforms (the pose a viewer shows before any animation plays);
+EXT_mesh_gpu_instancing, whose instances are expanded into copies; PNG and JPEG textures (and
+WebP, GIF, BMP, TGA); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
+with alphaMode OPAQUE and MASK; KHR_texture_transform, KHR_materials_specular,
+KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_lights_punctual
+(but ``range``); perspective cameras.
 
 Everything else a file asks for is named in a warning at load, once per kind ("KHR_materials_sheen
 on 3 materials ('cloth', ...) ignored: rendered without sheen"), saying what is rendered instead,
 and kept in ``GltfContent.load_warnings`` (``Scene.load_warnings``, listed by ``pw.explain``): the
 extensions ``_EXTENSIONS`` marks IGNORED and unknown ones, TEXCOORD_1 and above (sampled as
-TEXCOORD_0), NEAREST magnification, light ``range``, alphaMode BLEND (rendered opaque), animations
-(the nodes' stored static pose is shown), skins (not posed), morph targets at non-zero default
-weights (the base shape is shown), points, lines and triangle fans (skipped), cameras other than
-perspective (skipped) and scenes other than the default. The section "what pbrwarp honours" at the
-end of this module makes the notes (the reader adds TEXCOORD_n and camera types where it meets
-them). An IGNORED extension listed in ``extensionsRequired`` is an error, as glTF asks.
+TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification, light ``range``,
+alphaMode BLEND (rendered opaque), animations (the nodes' stored static pose is shown), points and
+lines (skipped), cameras other than perspective (skipped) and scenes other than the default. The
+section "what pbrwarp honours" at the end of this module makes the notes (the reader adds the
+ones it can only make where it reads: TEXCOORD_n, camera types, morph target attributes). An
+IGNORED extension listed in ``extensionsRequired`` is an error, as glTF asks.
 """
 
 from __future__ import annotations
@@ -35,7 +39,7 @@ import struct
 import urllib.parse
 import warnings
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -45,7 +49,7 @@ from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeE
 from .lights import DirectionalLight, PointLight, SpotLight
 from .load_limits import LoadLimits
 from .materials import Material
-from .primitive import Primitive, transform_primitive
+from .primitive import Primitive, transform_primitive, unit_rows
 from .tangents import generate_tangents
 from .textures import Texture, decode_rgba, open_image
 
@@ -56,8 +60,13 @@ _COMPONENT_TYPES = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4
 _INDEX_TYPES = (5121, 5123, 5125)
 _TYPE_WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}  # the accessor types pbrwarp reads
 _TYPE_COMPONENTS = {**_TYPE_WIDTHS, "MAT2": 4, "MAT3": 9, "MAT4": 16}  # every type, e.g. skins' MAT4
+_READ_WIDTHS = {**_TYPE_WIDTHS, "MAT4": 16}  # MAT4 for skins' float inverse bind matrices (no padding)
+_MORPHED = ("POSITION", "NORMAL", "TANGENT")  # the morph target attributes pbrwarp applies
+_INSTANCING = "EXT_mesh_gpu_instancing"
+_SKIN_CHUNK = 1 << 16  # vertices skinned at once: bounds the (chunk, 4, 4) blended matrices
 _WRAP_MODES = {10497: "repeat", 33071: "clamp", 33648: "mirror"}
-_TRIANGLES, _TRIANGLE_STRIP = 4, 5
+_TRIANGLES, _TRIANGLE_STRIP, _TRIANGLE_FAN = 4, 5, 6
+_TRIANGLE_MODES = (_TRIANGLES, _TRIANGLE_STRIP, _TRIANGLE_FAN)
 _MODES = range(7)  # POINTS .. TRIANGLE_FAN
 # glTF's default material (spec 3.9.6): everything 1, single-sided.
 _DEFAULT_MATERIAL = dict(base_color=(1.0, 1.0, 1.0, 1.0), metallic=1.0, roughness=1.0, double_sided=False)
@@ -139,6 +148,7 @@ class _Document:
         self.roots = roots
         self.limits = LoadLimits.of(limits)
         self._texels = 0  # texels of the images decoded so far
+        self._pose_values = 0  # vertex values read to pose meshes so far (_charge_pose_read)
         with open(path, "rb") as f:
             raw = f.read()
         if raw[:4] == _GLB_MAGIC:
@@ -301,9 +311,9 @@ class _Document:
         acc = self.element("accessors", index, what)
         what = f"accessor {index} ({what})"
         ctype, kind, count = acc.get("componentType"), acc.get("type"), acc.get("count")
-        width = _TYPE_WIDTHS.get(kind)
+        width = _READ_WIDTHS.get(kind)
         if width not in widths:
-            expected = " or ".join(k for k, w in _TYPE_WIDTHS.items() if w in widths)
+            expected = " or ".join(k for k, w in _READ_WIDTHS.items() if w in widths)
             raise self.error(f"{what} has type {kind!r}; expected {expected}")
         dtype = np.dtype(_COMPONENT_TYPES[ctype])
         if "bufferView" in acc:
@@ -375,6 +385,7 @@ class _PrimitiveData:
     tangents: np.ndarray | None
     colors: np.ndarray | None
     material: int | None
+    targets: list = field(default_factory=list)  # the primitive's morph targets, as in the JSON
 
 
 def _accessor_users(gltf: dict) -> dict[int, str]:
@@ -403,7 +414,7 @@ def _primitive_mode(doc: _Document, prim, where: str) -> int:
 
 
 def _primitive_size(doc: _Document, prim, where: str) -> tuple[int, int]:
-    """(vertices, triangles) of a triangle list or strip primitive, from its accessors' counts
+    """(vertices, triangles) of a triangle list, strip or fan primitive, from its accessors' counts
     (checked by _Document.check_accessor_sizes) before any of its data is read."""
     attrs = prim.get("attributes", {})
     if "POSITION" not in attrs:
@@ -412,7 +423,7 @@ def _primitive_size(doc: _Document, prim, where: str) -> tuple[int, int]:
     indices = vertices
     if "indices" in prim:
         indices = doc.element("accessors", prim["indices"], f"indices of {where}")["count"]
-    if _primitive_mode(doc, prim, where) == _TRIANGLE_STRIP:
+    if _primitive_mode(doc, prim, where) in (_TRIANGLE_STRIP, _TRIANGLE_FAN):
         return vertices, max(indices - 2, 0)
     return vertices, indices // 3
 
@@ -422,7 +433,7 @@ def _read_primitives(doc: _Document) -> dict[tuple[int, int], _PrimitiveData]:
     out = {}
     for mi, mesh in enumerate(doc.json.get("meshes", [])):
         for pi, prim in enumerate(mesh.get("primitives", [])):
-            if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in (_TRIANGLES, _TRIANGLE_STRIP):
+            if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in _TRIANGLE_MODES:
                 out[mi, pi] = _read_primitive(doc, (mi, pi), prim)
     return out
 
@@ -461,11 +472,13 @@ def _read_primitive(doc: _Document, key, prim) -> _PrimitiveData:
         key=key, positions=positions, faces=_primitive_faces(doc, prim, n, where),
         normals=attribute("NORMAL", (3,)), uvs=attribute("TEXCOORD_0", (2,)),
         tangents=attribute("TANGENT", (4,)), colors=colors, material=material,
+        targets=_morph_targets(doc, prim, n, where),
     )
 
 
 def _primitive_faces(doc: _Document, prim, n: int, where: str) -> np.ndarray:
-    """(F, 3) vertex indices of a triangle list or strip, every index checked against ``n``."""
+    """(F, 3) vertex indices of a triangle list, strip or fan, every index checked against ``n``.
+    A fan of fewer than 3 vertices has no triangles."""
     if "indices" in prim:
         acc = doc.element("accessors", prim["indices"], f"indices of {where}")
         if acc.get("componentType") not in _INDEX_TYPES or acc.get("normalized", False):
@@ -482,9 +495,218 @@ def _primitive_faces(doc: _Document, prim, n: int, where: str) -> np.ndarray:
         i = np.arange(len(idx) - 2)
         odd = i % 2  # glTF 3.7.2.1: triangle i is (i, i + 1 + odd, i + 2 - odd)
         return np.column_stack([idx[i], idx[i + 1 + odd], idx[i + 2 - odd]])
+    if prim.get("mode", _TRIANGLES) == _TRIANGLE_FAN:
+        i = np.arange(max(len(idx) - 2, 0))  # glTF 3.7.2.1: triangle i is (i + 1, i + 2, 0)
+        return np.column_stack([idx[i + 1], idx[i + 2], np.full(len(i), idx[0] if len(idx) else 0)])
     if len(idx) % 3:
         raise doc.error(f"{where} has {len(idx)} indices, not a multiple of 3")
     return idx.reshape(-1, 3)
+
+
+# ---------------------------------------------------------------------------- morph targets, skins, instancing
+def _morph_targets(doc: _Document, prim, n: int, where: str) -> list[dict]:
+    """A primitive's morph targets (glTF 2.0 "Morph Targets"), each the accessors of the POSITION,
+    NORMAL and TANGENT displacements it holds, checked against the primitive's attributes and
+    vertex count; they are read only when a weight applies them (_morphed). Other displaced
+    attributes (TEXCOORD_n, COLOR_n) are noted (doc.notes)."""
+    targets = prim.get("targets", [])
+    if not isinstance(targets, list):
+        raise doc.error(f"{where} targets must be an array, got {targets!r}")
+    attrs = prim.get("attributes", {})
+    out, ignored = [], set()
+    for ti, target in enumerate(targets):
+        if not isinstance(target, dict):
+            raise doc.error(f"{where} morph target {ti} is not an object")
+        for name, acc in target.items():
+            if name not in _MORPHED:
+                ignored.add(name)
+                continue
+            what = f"{name} of {where} morph target {ti}"
+            if name not in attrs:
+                raise doc.error(f"{what} displaces an attribute the primitive does not have")
+            count = doc.element("accessors", acc, what)["count"]
+            if count != n:
+                raise doc.error(f"{where} has {n} positions but {count} displacements in {what}")
+        out.append({name: acc for name, acc in target.items() if name in _MORPHED})
+    for name in sorted(ignored):
+        doc.notes.add(f"morph targets of {name}", f"morph targets of {name} ignored: pbrwarp applies POSITION, "
+                      "NORMAL and TANGENT displacements only")
+    return out
+
+
+def _morph_weights(doc: _Document, node: dict, index: int, data: _PrimitiveData) -> tuple[float, ...]:
+    """The default weights of a primitive's morph targets on node ``index``: ``node.weights``,
+    else ``mesh.weights``, else zeros (glTF 2.0 "Morph Targets"); one per target."""
+    mesh = doc.json["meshes"][node["mesh"]]
+    source = f"node {index}" if "weights" in node else f"mesh {node['mesh']}"
+    weights = node.get("weights", mesh.get("weights"))
+    if weights is None:
+        return (0.0,) * len(data.targets)
+    where = f"mesh {data.key[0]} primitive {data.key[1]}"
+    if not isinstance(weights, list) or len(weights) != len(data.targets):
+        count = len(weights) if isinstance(weights, list) else weights
+        raise doc.error(f"{source} has {count} morph weights, but {where} has {len(data.targets)} morph "
+                        "targets (glTF asks for one weight per target)")
+    return tuple(float(w) for w in _numbers(doc, weights, len(weights), f"{source} weights"))
+
+
+def _morphed(doc: _Document, data: _PrimitiveData, weights: tuple) -> _PrimitiveData:
+    """``data`` with its morph targets applied at ``weights``: attribute + sum of weight x
+    displacement, normals and tangent directions renormalized (tangents keep their handedness)."""
+    where = f"mesh {data.key[0]} primitive {data.key[1]}"
+    if all(w == 0.0 for w in weights):
+        return data
+    morphed = {"POSITION": data.positions, "NORMAL": data.normals,
+               "TANGENT": None if data.tangents is None else data.tangents[:, :3]}
+    for ti, (weight, target) in enumerate(zip(weights, data.targets)):
+        if weight == 0.0:
+            continue
+        for name, acc in target.items():
+            what = f"{name} of {where} morph target {ti}"
+            _charge_pose_read(doc, acc, what)
+            delta = doc.accessor(acc, what, (3,)).astype(np.float64)
+            if not np.all(np.isfinite(delta)):
+                raise doc.error(f"{what} has NaN or Inf displacements")
+            morphed[name] = morphed[name] + weight * delta
+    normals = None if data.normals is None else unit_rows(morphed["NORMAL"])
+    tangents = None
+    if data.tangents is not None:
+        tangents = np.column_stack([unit_rows(morphed["TANGENT"]), data.tangents[:, 3]])
+    return replace(data, positions=morphed["POSITION"], normals=normals, tangents=tangents)
+
+
+def _charge_pose_read(doc: _Document, accessor: int, what: str, per_element: int = 1):
+    """Count the elements of ``accessor`` (morph displacements, skin joints, weights and
+    matrices) against ``LoadLimits.max_vertices`` before it is read to pose a mesh. Many targets,
+    influence sets or nodes may name one accessor, so these reads are not bounded by the file's
+    size as the mesh data itself is; this bounds them."""
+    doc._pose_values += doc.json["accessors"][accessor]["count"] * per_element
+    if doc._pose_values > doc.limits.max_vertices:
+        raise doc.error(f"posing its meshes (morph targets, skins) reads more than the {doc.limits.max_vertices} "
+                        f"vertex values of LoadLimits.max_vertices; the limit is passed at {what}")
+
+
+def _joint_matrices(doc: _Document, node: dict, index: int, worlds: dict) -> np.ndarray:
+    """(J, 4, 4) joint matrices of node ``index``'s skin: world(joint) x inverseBindMatrix
+    (identity when the skin has none), glTF 2.0 "Skins"."""
+    skin_index = node["skin"]
+    skin = doc.element("skins", skin_index, f"node {index}")
+    joints = skin.get("joints")
+    if not isinstance(joints, list) or not joints:
+        raise doc.error(f"skin {skin_index} has no joints (a non-empty array of node indices is required)")
+    for joint in joints:
+        doc.element("nodes", joint, f"skin {skin_index} joints")
+        if joint not in worlds:
+            raise doc.error(f"skin {skin_index} joint node {joint} is not in the scene being loaded; glTF asks "
+                            "for a skin's joints in the scene of the node it skins")
+    posed = np.stack([worlds[joint] for joint in joints])
+    if "inverseBindMatrices" not in skin:
+        return posed
+    what = f"inverseBindMatrices of skin {skin_index}"
+    acc = doc.element("accessors", skin["inverseBindMatrices"], what)
+    if acc.get("componentType") != 5126 or acc["count"] < len(joints):
+        raise doc.error(f"{what} must be {len(joints)} or more float MAT4 matrices, got {acc['count']} of "
+                        f"componentType {acc.get('componentType')!r}")
+    _charge_pose_read(doc, skin["inverseBindMatrices"], what, per_element=4)  # a MAT4 holds four VEC4s
+    inverse_bind = doc.accessor(skin["inverseBindMatrices"], what, (16,))[:len(joints)]
+    if not np.all(np.isfinite(inverse_bind)):
+        raise doc.error(f"{what} has NaN or Inf entries")
+    return posed @ inverse_bind.reshape(-1, 4, 4).transpose(0, 2, 1)  # glTF matrices are column-major
+
+
+def _skin_influences(doc: _Document, prim: dict, n: int, joints: int, where: str) -> list:
+    """(joint indices, weights) of each JOINTS_k / WEIGHTS_k pair of a skinned primitive, each
+    (n, 4), the indices checked against the skin's ``joints`` joints."""
+    attrs = prim.get("attributes", {})
+    sets, k = [], 0
+    while f"JOINTS_{k}" in attrs or f"WEIGHTS_{k}" in attrs:
+        names = (f"JOINTS_{k}", f"WEIGHTS_{k}")
+        if not all(name in attrs for name in names):
+            raise doc.error(f"{where} has only one of {names[0]} and {names[1]}")
+        index_acc, weight_acc = (doc.element("accessors", attrs[name], f"{name} of {where}") for name in names)
+        for name, acc in zip(names, (index_acc, weight_acc)):
+            if acc["count"] != n:
+                raise doc.error(f"{where} has {n} positions but {acc['count']} {name} values")
+        if index_acc.get("componentType") not in (5121, 5123) or index_acc.get("normalized", False):
+            raise doc.error(f"{names[0]} of {where} must be unsigned bytes or shorts, "
+                            f"got componentType {index_acc.get('componentType')!r}")
+        if weight_acc.get("componentType") != 5126 and not (
+                weight_acc.get("componentType") in (5121, 5123) and weight_acc.get("normalized", False)):
+            raise doc.error(f"{names[1]} of {where} must be floats or normalized unsigned bytes or shorts, "
+                            f"got componentType {weight_acc.get('componentType')!r}")
+        for name in names:
+            _charge_pose_read(doc, attrs[name], f"{name} of {where}")
+        indices = doc.accessor(attrs[names[0]], f"{names[0]} of {where}", (4,)).astype(np.int64)
+        if n and int(indices.max()) >= joints:
+            raise doc.error(f"{names[0]} of {where} names joint {int(indices.max())}, but its skin has {joints} joints")
+        weights = doc.accessor(attrs[names[1]], f"{names[1]} of {where}", (4,)).astype(np.float64)
+        if not np.all(np.isfinite(weights)):
+            raise doc.error(f"{names[1]} of {where} has NaN or Inf weights")
+        sets.append((indices, weights))
+        k += 1
+    if not sets:
+        raise doc.error(f"{where} is on a node with a skin but has no JOINTS_0 and WEIGHTS_0 attributes")
+    return sets
+
+
+def _skinned(data: _PrimitiveData, matrices: np.ndarray, influences: list) -> _PrimitiveData:
+    """``data`` posed by linear blend skinning (glTF 2.0 "Skinned Mesh Attributes"): each vertex
+    moved by its weighted sum of joint matrices M, normals by M's inverse transpose (the
+    cofactor matrix times the sign of det M, which stays defined where M is singular), tangent
+    directions by M; normals and tangents renormalized."""
+    n = len(data.positions)
+    positions = np.empty((n, 3))
+    normals = None if data.normals is None else np.empty((n, 3))
+    tangents = None if data.tangents is None else data.tangents.copy()
+    for start in range(0, n, _SKIN_CHUNK):
+        rows = slice(start, start + _SKIN_CHUNK)
+        blend = sum(np.einsum("vk,vkij->vij", weights[rows], matrices[indices[rows]]) for indices, weights in influences)
+        linear = blend[:, :3, :3]
+        positions[rows] = np.einsum("vij,vj->vi", linear, data.positions[rows]) + blend[:, :3, 3]
+        if normals is not None:
+            c0, c1, c2 = linear[:, :, 0], linear[:, :, 1], linear[:, :, 2]
+            cofactor = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=2)
+            sign = np.sign(np.einsum("vi,vi->v", c0, cofactor[:, :, 0]))
+            normals[rows] = np.einsum("vij,vj->vi", cofactor, data.normals[rows]) * sign[:, None]
+        if tangents is not None:
+            tangents[rows, :3] = np.einsum("vij,vj->vi", linear, data.tangents[rows, :3])
+    if normals is not None:
+        normals = unit_rows(normals)
+    if tangents is not None:
+        tangents[:, :3] = unit_rows(tangents[:, :3])
+    return replace(data, positions=positions, normals=normals, tangents=tangents)
+
+
+def _instance_count(doc: _Document, node: dict, index: int) -> int | None:
+    """How many copies EXT_mesh_gpu_instancing places with node ``index`` (None without the
+    extension), from its accessors' counts in the JSON alone."""
+    ext = node.get("extensions", {}).get(_INSTANCING)
+    if ext is None:
+        return None
+    attrs = ext.get("attributes", {}) if isinstance(ext, dict) else None
+    if not isinstance(attrs, dict) or not any(name in attrs for name in ("TRANSLATION", "ROTATION", "SCALE")):
+        raise doc.error(f"node {index} {_INSTANCING} has no TRANSLATION, ROTATION or SCALE attribute")
+    counts = {name: doc.element("accessors", attrs[name], f"node {index} {_INSTANCING} {name}")["count"]
+              for name in ("TRANSLATION", "ROTATION", "SCALE") if name in attrs}
+    if len(set(counts.values())) > 1:
+        raise doc.error(f"node {index} {_INSTANCING} attributes have different counts {counts}")
+    return next(iter(counts.values()))
+
+
+def _instance_matrices(doc: _Document, node: dict, index: int) -> list[np.ndarray]:
+    """The local matrices (translation x rotation x scale) of node ``index``'s
+    EXT_mesh_gpu_instancing instances, applied before the node's own transform; [identity]
+    without the extension. Their count has been checked against LoadLimits (_check_instancing)."""
+    count = _instance_count(doc, node, index)
+    if count is None:
+        return [np.eye(4)]
+    attrs = node["extensions"][_INSTANCING]["attributes"]
+    trs = {}
+    for name, width in (("TRANSLATION", 3), ("ROTATION", 4), ("SCALE", 3)):
+        if name in attrs:
+            trs[name.lower()] = doc.accessor(attrs[name], f"node {index} {_INSTANCING} {name}", (width,)).tolist()
+    return [_local_matrix(doc, {key: values[k] for key, values in trs.items()}, f"{index} instance {k}")
+            for k in range(count)]
 
 
 class _Builder:
@@ -494,35 +716,56 @@ class _Builder:
         self.doc = doc
         self.data = data
         self.materials = _Materials(doc)
-        self._local: dict[tuple[int, int], Primitive] = {}
+        self._local: dict[tuple, Primitive] = {}  # (mesh, primitive), morph weights -> Primitive
 
     def primitives(self, nodes: list) -> list[Primitive]:
         """The Primitives the walked ``nodes`` (_scene_nodes) place, named after their node (and
         ``/k`` for primitive k of a mesh with several)."""
         out = []
         names = _node_names(self.doc)
+        worlds = dict(nodes)
         for index, world in nodes:
             node = self.doc.json["nodes"][index]
             if "mesh" not in node:
                 continue
             prims = self.doc.json["meshes"][node["mesh"]].get("primitives", [])
+            instances = _instance_matrices(self.doc, node, index)
             for pi in range(len(prims)):
                 data = self.data.get((node["mesh"], pi))
-                if data is None or len(data.faces) == 0:  # _note_points_and_lines, _note_triangle_fans say why
+                if data is None or len(data.faces) == 0:  # _note_points_and_lines says why
                     continue
-                try:
-                    world_prim = transform_primitive(self._local_primitive(data), world)
-                except InputError as err:
-                    raise self.doc.error(f"node {index}: {err}") from None
-                world_prim.name = names[index] if len(prims) == 1 else f"{names[index]}/{pi}"
-                out.append(world_prim)
+                posed, placement = self._posed(node, index, data, world, worlds)
+                name = names[index] if len(prims) == 1 else f"{names[index]}/{pi}"
+                for k, instance in enumerate(instances):
+                    try:
+                        world_prim = transform_primitive(posed, placement @ instance)
+                    except InputError as err:
+                        raise self.doc.error(f"node {index}: {err}") from None
+                    world_prim.name = name if len(instances) == 1 else f"{name}#{k}"
+                    out.append(world_prim)
         return out
 
-    def _local_primitive(self, data: _PrimitiveData) -> Primitive:
-        """The Primitive of one glTF primitive in its mesh's space, shared by its instances."""
-        if data.key not in self._local:
-            self._local[data.key] = self._from_data(data)
-        return self._local[data.key]
+    def _posed(self, node: dict, index: int, data: _PrimitiveData, world, worlds: dict) -> tuple:
+        """(Primitive, matrix that places it) for one primitive of node ``index``: the primitive
+        at the node's morph weights in its mesh's space, placed by the node's world matrix; or,
+        on a node with a skin, posed by the skin's joints in world space, placed by the identity
+        (glTF ignores a skinned mesh node's own transform)."""
+        weights = _morph_weights(self.doc, node, index, data)
+        if "skin" not in node:
+            return self._local_primitive(data, weights), world
+        matrices = _joint_matrices(self.doc, node, index, worlds)
+        where = f"mesh {data.key[0]} primitive {data.key[1]}"
+        prim = self.doc.json["meshes"][data.key[0]]["primitives"][data.key[1]]
+        influences = _skin_influences(self.doc, prim, len(data.positions), len(matrices), where)
+        return self._from_data(_skinned(_morphed(self.doc, data, weights), matrices, influences)), np.eye(4)
+
+    def _local_primitive(self, data: _PrimitiveData, weights: tuple) -> Primitive:
+        """The Primitive of one glTF primitive in its mesh's space at morph ``weights``, shared
+        by the nodes that place it with those weights."""
+        key = (data.key, weights)
+        if key not in self._local:
+            self._local[key] = self._from_data(_morphed(self.doc, data, weights))
+        return self._local[key]
 
     def _from_data(self, data: _PrimitiveData) -> Primitive:
         if data.material is None:
@@ -701,7 +944,8 @@ def _second_visit(index: int, parent: int | None, parents: dict) -> str:
 
 
 def _check_instancing(doc: _Document, nodes: list):
-    """The primitives, vertices and triangles the scene's mesh nodes place, counted from the
+    """The primitives, vertices and triangles the scene's mesh nodes place (times the copies
+    EXT_mesh_gpu_instancing makes of a node), counted from the
     JSON before any mesh is read or copied, against LoadLimits."""
     limits = doc.limits
     sizes: dict[int, tuple[int, int, int]] = {}  # mesh -> (primitives, vertices, triangles)
@@ -710,16 +954,21 @@ def _check_instancing(doc: _Document, nodes: list):
         node = doc.json["nodes"][index]
         if "mesh" not in node:
             continue
+        copies = _instance_count(doc, node, index)
+        copies = 1 if copies is None else copies
+        if copies > limits.max_instances:
+            raise doc.error(f"node {index} places {copies} {_INSTANCING} instances, more than the "
+                            f"{limits.max_instances} of LoadLimits.max_instances")
         mi = node["mesh"]
         if mi not in sizes:
             mesh = doc.element("meshes", mi, f"node {index}")
             prims = mesh.get("primitives", [])
             counts = [_primitive_size(doc, prim, f"mesh {mi} primitive {pi}") for pi, prim in enumerate(prims)
-                      if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in (_TRIANGLES, _TRIANGLE_STRIP)]
+                      if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in _TRIANGLE_MODES]
             sizes[mi] = (len(prims), sum(c[0] for c in counts), sum(c[1] for c in counts))
-        instances += sizes[mi][0]
-        vertices += sizes[mi][1]
-        triangles += sizes[mi][2]
+        instances += sizes[mi][0] * copies
+        vertices += sizes[mi][1] * copies
+        triangles += sizes[mi][2] * copies
         for total, field_name, noun in ((instances, "max_instances", "mesh primitives"),
                                         (vertices, "max_vertices", "vertices"), (triangles, "max_triangles", "triangles")):
             limit = getattr(limits, field_name)
@@ -843,7 +1092,7 @@ _EXTENSIONS = {
     "KHR_materials_unlit": (HONOURED, ""),
     "KHR_materials_variants": (IGNORED, "each primitive shows its default material"),
     "KHR_materials_volume": (IGNORED, "rendered without absorption inside the volume"),
-    "KHR_mesh_quantization": (IGNORED, "its accessors are read unchecked (a valid file also requires it: refused)"),
+    "KHR_mesh_quantization": (HONOURED, ""),
     "KHR_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
     "EXT_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
     "KHR_node_visibility": (IGNORED, "nodes it hides are shown"),
@@ -851,7 +1100,7 @@ _EXTENSIONS = {
     "EXT_texture_webp": (IGNORED, "the textures' fallback PNG or JPEG images are used"),
     "EXT_texture_avif": (IGNORED, "the textures' fallback PNG or JPEG images are used"),
     "MSFT_texture_dds": (IGNORED, "the textures' fallback PNG or JPEG images are used"),
-    "EXT_mesh_gpu_instancing": (IGNORED, "each node shows its mesh once, at the node's own transform"),
+    "EXT_mesh_gpu_instancing": (HONOURED, ""),
     "EXT_lights_image_based": (IGNORED, "no environment lighting from the file (set scene.environment)"),
     "MSFT_lod": (IGNORED, "the most detailed level is shown"),
 }
@@ -865,7 +1114,6 @@ _SUPPORTED_EXTENSIONS = frozenset(name for name, (status, _) in _EXTENSIONS.item
 # only in which texel of a many-texel footprint is taken (docs/loading.md).
 _MAG_FILTERS = {9728: ("NEAREST", False), 9729: ("LINEAR", True)}
 _SKIPPED_MODES = {0: "points", 1: "lines", 2: "line loops", 3: "line strips"}  # rendered without them
-_TRIANGLE_FAN = 6
 # Top-level arrays whose elements own the extension objects inside them, by singular noun.
 _OWNER_NOUNS = {"accessors": "accessor", "animations": "animation", "buffers": "buffer", "bufferViews": "bufferView",
                 "cameras": "camera", "images": "image", "materials": "material", "meshes": "mesh", "nodes": "node",
@@ -923,14 +1171,11 @@ def _elements(doc: _Document, kind: str) -> list[tuple[int, dict]]:
 def _note_unhonoured(doc: _Document, nodes: list):
     """Note (doc.notes) everything in the file that pbrwarp does not honour; the reader notes the
     rest where it reads it (texture coordinate sets in _Materials._texture, camera types in
-    _node_camera). ``nodes``: the default scene's (_scene_nodes)."""
+    _node_camera, morph target attributes in _morph_targets). ``nodes``: the default scene's (_scene_nodes)."""
     _note_extensions(doc)
     _note_scenes(doc)
     _note_animations(doc)
-    _note_skins(doc, nodes)
-    _note_morph_targets(doc, nodes)
     _note_points_and_lines(doc, nodes)
-    _note_triangle_fans(doc, nodes)
     _note_alpha_blend(doc)
     _note_sampler_filters(doc)
     _note_light_ranges(doc)
@@ -993,32 +1238,6 @@ def _note_animations(doc: _Document):
                       "transforms and morph weights) is shown", "animation", index, _ident(animation, index))
 
 
-def _note_skins(doc: _Document, nodes: list):
-    """Skinned mesh nodes: their meshes are not posed by their joints."""
-    for index, _ in nodes:
-        node = doc.json["nodes"][index]
-        if "skin" in node and "mesh" in node:
-            doc.notes.add("skins", "skins not applied to {subjects}: the meshes are shown in their stored (bind) "
-                          "shape, placed by their nodes' transforms rather than posed by their joints",
-                          "node", index, _ident(node, index))
-
-
-def _note_morph_targets(doc: _Document, nodes: list):
-    """Mesh nodes whose default morph weights (node.weights, else mesh.weights) are not all zero:
-    the targets are not blended in, so the base shape shows."""
-    for index, _ in nodes:
-        node = doc.json["nodes"][index]
-        if "mesh" not in node:
-            continue
-        mesh = doc.json["meshes"][node["mesh"]]
-        if not any(isinstance(prim, dict) and prim.get("targets") for prim in mesh.get("primitives", [])):
-            continue
-        weights = node.get("weights", mesh.get("weights", []))
-        if isinstance(weights, list) and any(isinstance(w, (int, float)) and w != 0 for w in weights):
-            doc.notes.add("morph targets", "morph targets not applied to {subjects}: the base shape is shown, "
-                          "not the one their non-zero default weights blend", "node", index, _ident(node, index))
-
-
 def _placed_primitives(doc: _Document, nodes: list, modes) -> list[tuple[int, int, dict]]:
     """(mesh index, primitive index, mesh) of each primitive drawn in one of ``modes`` that the
     scene's nodes place, each once."""
@@ -1037,12 +1256,6 @@ def _note_points_and_lines(doc: _Document, nodes: list):
     for mi, pi, mesh in _placed_primitives(doc, nodes, _SKIPPED_MODES):
         name = _SKIPPED_MODES[mesh["primitives"][pi].get("mode")]
         doc.notes.add(f"mode {name}", f"{{subjects}} drawn as {name} skipped: pbrwarp renders triangles only",
-                      "primitive", (mi, pi), f"{pi} of mesh {_ident(mesh, mi)}")
-
-
-def _note_triangle_fans(doc: _Document, nodes: list):
-    for mi, pi, mesh in _placed_primitives(doc, nodes, (_TRIANGLE_FAN,)):
-        doc.notes.add("triangle fans", "{subjects} drawn as triangle fans skipped: rendered without them",
                       "primitive", (mi, pi), f"{pi} of mesh {_ident(mesh, mi)}")
 
 

@@ -240,7 +240,7 @@ class Builder:
         return len(self.json["bufferViews"]) - 1
 
     def accessor(self, array, kind, ctype=5126, normalized=False, view=None, offset=0, count=None) -> int:
-        dtype = {5126: "<f4", 5121: "u1", 5123: "<u2", 5125: "<u4"}[ctype]
+        dtype = {5126: "<f4", 5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4"}[ctype]
         array = np.asarray(array)
         if view is None:
             view = self.view(np.ascontiguousarray(array, dtype=dtype).tobytes())
@@ -385,11 +385,11 @@ def test_primitives_are_named_after_their_nodes(tmp_path):
     assert names == ["twice/0", "twice/1", "twice_1", "2"]
 
 
-def test_points_lines_and_fans_are_skipped_with_a_warning(tmp_path):
+def test_points_and_lines_are_skipped_with_a_warning(tmp_path):
     b = Builder()
     mesh = b.quad()
     prim = b.json["meshes"][mesh]["primitives"][0]
-    b.json["meshes"][mesh]["primitives"] += [dict(prim, mode=0), dict(prim, mode=1), dict(prim, mode=6)]
+    b.json["meshes"][mesh]["primitives"] += [dict(prim, mode=0), dict(prim, mode=1), dict(prim, mode=3)]
     b.node(mesh=mesh)
     with pytest.warns(UserWarning) as caught:
         content = load_gltf(b.glb(tmp_path / "modes.glb"))
@@ -398,7 +398,7 @@ def test_points_lines_and_fans_are_skipped_with_a_warning(tmp_path):
     assert [m.split(": ", 1)[1] for m in content.load_warnings] == [
         "primitive 1 of mesh 'Quad' drawn as points skipped: pbrwarp renders triangles only",
         "primitive 2 of mesh 'Quad' drawn as lines skipped: pbrwarp renders triangles only",
-        "primitive 3 of mesh 'Quad' drawn as triangle fans skipped: rendered without them"]
+        "primitive 3 of mesh 'Quad' drawn as line strips skipped: pbrwarp renders triangles only"]
 
 
 def test_material_extensions_and_texture_settings(tmp_path):
