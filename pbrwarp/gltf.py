@@ -848,7 +848,9 @@ class _Materials:
         if tex_coord != 0:
             doc.notes.add(f"TEXCOORD_{tex_coord}", f"TEXCOORD_{tex_coord} not read: {{subjects}} sampled with "
                           "TEXCOORD_0 instead", "texture slot", label)
-        if "source" not in tex:
+        # EXT_texture_webp names a WebP image, which Pillow decodes; "source" is then the fallback
+        source = tex.get("extensions", {}).get("EXT_texture_webp", {}).get("source", tex.get("source"))
+        if source is None:
             raise doc.error(f"{label}: texture {info['index']} has no image source pbrwarp can decode")
         sampler = doc.element("samplers", tex["sampler"], label) if "sampler" in tex else {}
         wrap = []
@@ -860,9 +862,9 @@ class _Materials:
         offset = tuple(float(x) for x in transform.get("offset", (0.0, 0.0)))
         scale = tuple(float(x) for x in transform.get("scale", (1.0, 1.0)))
         rotation = float(transform.get("rotation", 0.0))
-        key = (tex["source"], *wrap, offset, rotation, scale)
+        key = (source, *wrap, offset, rotation, scale)
         if key not in self._textures:
-            self._textures[key] = Texture(doc.image(tex["source"]), wrap_s=wrap[0], wrap_t=wrap[1],
+            self._textures[key] = Texture(doc.image(source), wrap_s=wrap[0], wrap_t=wrap[1],
                                           offset=offset, rotation=rotation, scale=scale)
         return self._textures[key]
 
@@ -1097,7 +1099,7 @@ _EXTENSIONS = {
     "EXT_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
     "KHR_node_visibility": (IGNORED, "nodes it hides are shown"),
     "KHR_texture_basisu": (IGNORED, "the textures' fallback PNG or JPEG images are used"),
-    "EXT_texture_webp": (IGNORED, "the textures' fallback PNG or JPEG images are used"),
+    "EXT_texture_webp": (HONOURED, ""),
     "EXT_texture_avif": (IGNORED, "the textures' fallback PNG or JPEG images are used"),
     "MSFT_texture_dds": (IGNORED, "the textures' fallback PNG or JPEG images are used"),
     "EXT_mesh_gpu_instancing": (HONOURED, ""),

@@ -438,6 +438,28 @@ def test_material_extensions_and_texture_settings(tmp_path):
     np.testing.assert_allclose(prim.tangents, np.tile([1.0, 0, 0, 1.0], (4, 1)), atol=1e-12)
 
 
+def test_ext_texture_webp_reads_the_webp_image(tmp_path):
+    """EXT_texture_webp: the texture's WebP image (lossless here) is read, not its PNG fallback."""
+    from PIL import Image
+    import io
+
+    b = Builder()
+    pixels = np.arange(4 * 4 * 3, dtype=np.uint8).reshape(4, 4, 3)[::-1].copy()
+    buf = io.BytesIO()
+    Image.fromarray(pixels).save(buf, format="WEBP", lossless=True)
+    b.json.setdefault("images", []).append({"bufferView": b.view(buf.getvalue()), "mimeType": "image/webp"})
+    webp = len(b.json["images"]) - 1
+    fallback = b.image()
+    b.json["textures"] = [{"source": fallback, "extensions": {"EXT_texture_webp": {"source": webp}}}]
+    b.json["materials"] = [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]
+    b.json["extensionsUsed"] = b.json["extensionsRequired"] = ["EXT_texture_webp"]
+    b.node(mesh=b.quad(material=0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        prim, = load_gltf(b.glb(tmp_path / "webp.glb")).primitives
+    np.testing.assert_array_equal(np.asarray(prim.material.base_color_texture.image)[..., :3], pixels)
+
+
 def test_default_material_and_no_tangents_without_normal_map(tmp_path):
     b = Builder()
     b.node(mesh=b.quad())
