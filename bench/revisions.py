@@ -2,7 +2,7 @@
 
     python bench/revisions.py BASE [--rounds 3] [--repeats 15] [--case icosphere:5:1024 ...]
 
-Checks BASE (any git revision) out into a temporary worktree and, round after round, times each
+Checks BASE (any git revision) out into a temporary worktree beside this checkout and, round after round, times each
 case in a fresh Python process of BASE and then of this checkout, alternately, so that a burst of
 load on this shared machine falls on both alike. Each process runs bench/visibility.py's
 ``bench_case`` of *its own* revision (rasterization on 1 and all threads, and Embree's ray cast
@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -47,8 +48,9 @@ print(json.dumps(row))
 
 
 def time_case(tree: Path, case: str, repeats: int) -> dict:
-    done = subprocess.run([sys.executable, "-c", CHILD, case, str(repeats)], cwd=tree, capture_output=True,
-                          text=True, check=True)
+    done = subprocess.run([sys.executable, "-c", CHILD, case, str(repeats)], cwd=tree, capture_output=True, text=True)
+    if done.returncode != 0:
+        sys.exit(f"timing {case} in {tree} failed:\n{done.stderr}")
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
@@ -62,26 +64,26 @@ def main(argv=None):
     base_commit = subprocess.run(["git", "rev-parse", "--short", args.base], cwd=HERE, capture_output=True,
                                  text=True, check=True).stdout.strip()
     rows = []
-    with tempfile.TemporaryDirectory() as folder:
-        base_tree = Path(folder) / "base"
-        subprocess.run(["git", "worktree", "add", "--detach", "--quiet", str(base_tree), args.base], cwd=HERE,
-                       check=True)
-        try:
-            for case in args.case:
-                runs = {"base": [], "this": []}
-                for _ in range(args.rounds):
-                    runs["base"].append(time_case(base_tree, case, args.repeats))
-                    runs["this"].append(time_case(HERE, case, args.repeats))
-                row = {"case": case, "coverage": runs["this"][0]["coverage"]}
-                for field in FIELDS:
-                    for side in ("base", "this"):
-                        row[f"{side}_{field}"] = statistics.median(r[field] for r in runs[side])
-                    row[f"ratio_{field}"] = statistics.median(t[field] / b[field]
-                                                             for b, t in zip(runs["base"], runs["this"]))
-                rows.append(row)
-                print(row, file=sys.stderr)
-        finally:
-            subprocess.run(["git", "worktree", "remove", "--force", str(base_tree)], cwd=HERE, check=False)
+    # beside this checkout, so that both find the shared assets (../shared) the same way
+    base_tree = Path(tempfile.mkdtemp(prefix=".pbrwarp-base-", dir=HERE.parent))
+    subprocess.run(["git", "worktree", "add", "--detach", "--quiet", str(base_tree), args.base], cwd=HERE, check=True)
+    try:
+        for case in args.case:
+            runs = {"base": [], "this": []}
+            for _ in range(args.rounds):
+                runs["base"].append(time_case(base_tree, case, args.repeats))
+                runs["this"].append(time_case(HERE, case, args.repeats))
+            row = {"case": case, "coverage": runs["this"][0]["coverage"]}
+            for field in FIELDS:
+                for side in ("base", "this"):
+                    row[f"{side}_{field}"] = statistics.median(r[field] for r in runs[side])
+                row[f"ratio_{field}"] = statistics.median(t[field] / b[field]
+                                                         for b, t in zip(runs["base"], runs["this"]))
+            rows.append(row)
+            print(row, file=sys.stderr)
+    finally:
+        subprocess.run(["git", "worktree", "remove", "--force", str(base_tree)], cwd=HERE, check=False)
+        shutil.rmtree(base_tree, ignore_errors=True)
     write_results("revisions", command_line(ap, args), {"base": base_commit, "rows": rows},
                   markdown(rows, base_commit, args))
 
