@@ -112,7 +112,8 @@ class _Pool:
             with self._changed:
                 self._queued -= 1
                 self._idle -= 1
-                runs = future.set_running_or_notify_cancel()  # False: dropped (drop)
+                # drop() cancelled it (and notified its waiters): skip it
+                runs = not future.cancelled() and future.set_running_or_notify_cancel()
             if runs:
                 self._run(future, task)
             else:
@@ -238,7 +239,7 @@ def run_all(fn, jobs, threads: int | None, cancel=None):
 _together_turn = threading.Lock()
 
 
-def run_together(fn, threads: int, join: bool = True, cancel=None):
+def run_together(fn, threads: int, join: bool = True, cancel=None, caller_first: bool = False):
     """fn(k) for k = 0..threads-1 all at once, each on a pool thread of its own, for launches that
     wait for each other (see kernels/barriers.py's all_arrived), so none may queue behind another.
     Concurrent calls take turns, lest one call's launches hold the pool while the others' wait
@@ -249,7 +250,12 @@ def run_together(fn, threads: int, join: bool = True, cancel=None):
     ``join`` False returns as soon as fn(0) has (unless it raised), for launches of which the
     first returns only once the others are done (the raster's): the pool threads' way back to
     Python then overlaps the caller's; the returned callable waits for them and re-raises the
-    first of their errors (for a caller that found their launches aborted)."""
+    first of their errors (for a caller that found their launches aborted).
+
+    ``caller_first`` True runs fn(0) on the calling thread rather than a pool thread's, for calls
+    short enough that an interrupt may wait for their launch to return (the raster's, when its
+    cost model gives a few tens of milliseconds): it saves waking a pool thread and then the
+    caller, which on a small virtual machine costs as much as a frame's rasterization."""
     stop = cancel if cancel is not None else _nothing
 
     def launch(k):
@@ -259,9 +265,21 @@ def run_together(fn, threads: int, join: bool = True, cancel=None):
             stop()  # at once: the others may be waiting for this one
             raise
 
+    n = thread_count(threads)
     with _together_turn:
-        futures = _launch([functools.partial(launch, k) for k in range(thread_count(threads))], stop,
-                          first_only=not join)
+        if caller_first:
+            futures = [Future() for _ in range(1, n)]
+            try:
+                if futures:
+                    _pool.start([(future, functools.partial(launch, k)) for k, future in enumerate(futures, 1)])
+                launch(0)
+            except BaseException:
+                _stop_all(futures, stop)
+                raise
+            if join:
+                _wait(futures, stop)
+        else:
+            futures = _launch([functools.partial(launch, k) for k in range(n)], stop, first_only=not join)
     if join:
         return _nothing
 

@@ -145,6 +145,9 @@ def _kernel_struct(recorded: dict, kind, **fields):
 RASTER_SECONDS_PER_TRIANGLE = 10.5e-9
 RASTER_SECONDS_PER_SAMPLE = 5.06e-9
 RAYCAST_SECONDS_PER_SAMPLE_LOG2_TRIANGLE = 7.21e-9
+# Calls the cost model puts under this (on every core) run their first launch on the calling
+# thread: an interrupt then waits for that launch, at most a few times this long.
+CALLER_LAUNCH_SECONDS = 0.03
 
 KERNELS = (sampling.sample_positions, rk.visibility_pipeline, ok.cluster_bounds, projection_of)
 CLUSTER_SIZE = int(ok.CLUSTER_SIZE)
@@ -463,6 +466,9 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
         released = scratch["released"] = wp.zeros(1, dtype=wp.int64, device="cpu")
         scratch["released_view"] = released.numpy()
     released_view = scratch["released_view"]
+    # the caller runs launch 0 itself where an interrupt may wait for it (parallel.run_together)
+    short_call = (RASTER_SECONDS_PER_TRIANGLE * triangles + RASTER_SECONDS_PER_SAMPLE * width * height * spp
+                  < CALLER_LAUNCH_SECONDS)
 
     def run(first_stage, stop_after_binning):
         def launch(k):
@@ -503,7 +509,7 @@ def visibility_buffer(positions: wp.array, indices: wp.array, cam: CameraData, s
                                  axis=cluster_arrays[2], spread=cluster_arrays[3], rect=layout.cluster_rect,
                                  nearest=layout.cluster_nearest)
         try:
-            join = run_together(launch, threads, join=False, cancel=abort)
+            join = run_together(launch, threads, join=False, cancel=abort, caller_first=short_call)
         finally:
             released_view[0] = epoch  # the pool threads' launches return (kernels/barriers.py wait_for_release)
         if layout.sync_view[int(rk.ABORTED)] != 0:

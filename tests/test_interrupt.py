@@ -105,7 +105,8 @@ def test_renders_with_every_thread_count_keep_a_bounded_number_of_threads():
 
 
 def test_a_thread_that_cannot_start_or_a_failed_launch_stops_the_launches_already_running():
-    """A raster render on two threads when the pool holds one and no thread may start: a
+    """A raster render on three threads when the pool holds one and no thread may start (a short
+    raster call runs its first launch on the caller: the other two need a pool thread each): a
     pbrwarp.ResourceError (a PbrwarpError and a RuntimeError) from the raster's run_together;
     and a raster launch that fails on either side: its error. After each, the process uses no
     CPU (no launch left waiting for the other at a barrier) and renders the frame again,
@@ -130,7 +131,7 @@ def test_a_thread_that_cannot_start_or_a_failed_launch_stops_the_launches_alread
             raise RuntimeError("can't start new thread")
         threading.Thread.start = refuse
         try:
-            pw.render(scene, camera, threads=2, visibility="raster", **SMALL)
+            pw.render(scene, camera, threads=3, visibility="raster", **SMALL)
         except Exception as error:
             threading.Thread.start = start
             after_failure("thread start", error)

@@ -195,3 +195,46 @@ def test_ranges_hand_out_every_item_once_to_launches_running_at_once(launches):
         assert (times_taken.numpy() == 1).all()
         owners = taken_by.numpy()
         assert ((owners >= 0) & (owners < launches)).all()
+
+
+@pytest.mark.filterwarnings("error::pytest.PytestUnhandledThreadExceptionWarning")
+@pytest.mark.parametrize("caller_first", [False, True])
+def test_run_together_runs_every_launch_at_once_and_where_asked(caller_first):
+    """run_together: fn(0..n-1) all at once (each waits for all to have started), fn(0) on the
+    calling thread exactly when caller_first, the others on pool threads; a failing launch
+    cancels (releases) the others, those not yet taken by a pool thread are dropped, its error is
+    raised once the rest are done, and the pool serves the next call as before."""
+    import threading
+
+    from pbrwarp.parallel import run_together
+
+    started, where = threading.Barrier(3, timeout=10), {}
+
+    def launch(k):
+        where[k] = threading.get_ident()
+        started.wait()
+
+    run_together(launch, 3, caller_first=caller_first)
+    assert sorted(where) == [0, 1, 2] and len(set(where.values())) == 3
+    assert (where[0] == threading.get_ident()) == caller_first
+    assert threading.get_ident() not in (where[1], where[2])
+
+    release, finished = threading.Event(), []
+
+    def failing(k):
+        if k == 0:
+            raise ValueError("launch 0 failed")
+        release.wait(10)  # waits for the cancel, as raster launches wait at a barrier for the abort flag
+        finished.append(k)
+
+    for _ in range(20):
+        release.clear()
+        finished.clear()
+        with pytest.raises(ValueError, match="launch 0 failed"):
+            join = run_together(failing, 3, join=False, cancel=release.set, caller_first=caller_first)
+            join()
+        assert release.is_set() and set(finished) <= {1, 2}
+    where.clear()
+    started.reset()
+    run_together(launch, 3, caller_first=caller_first)
+    assert sorted(where) == [0, 1, 2]
