@@ -4,8 +4,9 @@
 
 For each model folder of ``../shared/assets/gltf/`` and ``gltf-ext/`` (one Khronos sample model
 or test board each): loads the model (``pw.Scene.load``; the first of its glTF-Binary, glTF,
-glTF-Quantized and glTF-Draco variants), frames it from +Z as the Khronos sample viewer's
-default camera does (``Camera.frame``), lights it with the environment alone and renders it at
+glTF-Quantized and glTF-Draco variants), frames it (``Camera.frame``) from +Z and a little
+above, as the Khronos sample viewer's screenshots mostly show a model (from 45 degrees above for
+a model flat in Y), lights it with the environment alone and renders it at
 the reference screenshot's aspect. Writes, for each model, one image, pbrwarp's render on the
 left and the folder's reference screenshot (the sample viewer's, from the folder's
 ``screenshot/``) on the right, to ``docs/gallery/<model>.jpg``, and ``docs/gallery.md``: the
@@ -73,6 +74,15 @@ def short(message: str, folder: Path) -> str:
     return str(message).replace(str(folder) + os.sep, "").replace(str(ASSETS) + os.sep, "").replace("|", "/")
 
 
+def view_direction(scene) -> tuple:
+    """From +Z and a little above (14 degrees), as the sample viewer's screenshots mostly show a
+    model; from 45 degrees above for a scene flat in Y (a plane seen edge-on shows nothing)."""
+    lo, hi = scene.bounds()
+    extent = hi - lo
+    flat = extent[1] < 0.2 * max(extent[0], extent[2])
+    return (0.0, 1.0, 1.0) if flat else (0.0, 0.25, 1.0)
+
+
 def render_model(path: Path, environment, aspect: float, height: int, spp: int):
     """(image as RGB uint8 or None, messages, load s, render s)."""
     messages = []
@@ -88,7 +98,7 @@ def render_model(path: Path, environment, aspect: float, height: int, spp: int):
         width = max(16, round(height * aspect))
         start = time.perf_counter()
         try:
-            frame = pw.render(scene, pw.Camera.frame(scene, direction=(0.0, 0.0, 1.0), aspect=width / height),
+            frame = pw.render(scene, pw.Camera.frame(scene, direction=view_direction(scene), aspect=width / height),
                               width=width, height=height, spp=spp, progress=False)
         except pw.PbrwarpError as error:
             return None, [f"render refused: {error}"], loaded, time.perf_counter() - start
@@ -149,7 +159,8 @@ def markdown(rows, command, args) -> str:
         "",
         f"Each image: pbrwarp's render on the left, the model's reference screenshot (rendered by the Khronos "
         f"glTF sample viewer, from the model's folder) on the right. pbrwarp lights the model with the "
-        f"environment `{Path(args.env).name}` alone, frames it from +Z with `Camera.frame`, {args.spp} samples "
+        f"environment `{Path(args.env).name}` alone, frames it with `Camera.frame` from +Z, 14 degrees above "
+        f"(45 for a model flat in Y), {args.spp} samples "
         f"per pixel, ACES tone mapping; the sample viewer used its own environment and tone map, so compare "
         f"what each test board tests (its README), not the exact colours. Under each image: every warning "
         f"pbrwarp gave (what it does not honour), or the error that refused the model.",
