@@ -12,7 +12,8 @@ import pytest
 import pbrwarp as pw
 from pbrwarp.cli import main
 from pbrwarp.errors import AssetFormatError
-from pbrwarp.gltf import _EXTENSIONS, IGNORED, load_gltf
+from pbrwarp.gltf import load_gltf
+from pbrwarp.gltf_notes import _EXTENSIONS, IGNORED
 
 from assets import BOARDS, GLTF, asset_id, board
 from test_gltf import Builder
