@@ -1,9 +1,9 @@
 """Spreading Warp launches over cores: a CPU launch runs on one thread and releases the GIL, so
 launches from a pool of threads run in parallel.
 
-The calling thread never runs a launch itself: it waits for the pool's, interruptibly, since a
-launch in C cannot be interrupted and Python runs signal handlers (Ctrl-C's KeyboardInterrupt)
-on the main thread only. When the wait ends in an exception (an interrupt, or an error of one of
+The calling thread runs no launch itself (but the first of a short run_together call, with
+``caller_first``): it waits for the pool's, interruptibly, since a launch in C cannot be
+interrupted and Python runs signal handlers (Ctrl-C's KeyboardInterrupt) on the main thread only. When the wait ends in an exception (an interrupt, or an error of one of
 the launches), no further job is handed out, the call's ``cancel`` hook tells the launches
 running to stop early (the render kernel's stop flag, the raster's abort flag), and the caller
 waits for them to return before it raises: nothing of the call keeps running, so the next call
