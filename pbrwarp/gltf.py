@@ -148,7 +148,7 @@ class _Document:
         self.roots = roots
         self.limits = LoadLimits.of(limits)
         self._texels = 0  # texels of the images decoded so far
-        self._pose_values = 0  # vertex values read to pose meshes so far (_charge_pose_read)
+        self._pose_values = 0  # vertex values read to pose meshes so far (charge_pose_read)
         with open(path, "rb") as f:
             raw = f.read()
         if raw[:4] == _GLB_MAGIC:
@@ -303,6 +303,17 @@ class _Document:
             elif count > self.limits.max_vertices:
                 raise self.error(f"{what} has no bufferView and count {count}: it would allocate {count} zero "
                                  f"elements, more than the {self.limits.max_vertices} of LoadLimits.max_vertices")
+
+    def charge_pose_read(self, accessor: int, what: str, per_element: int = 1):
+        """Count the elements of ``accessor`` (morph displacements, skin joints, weights and
+        matrices) against ``LoadLimits.max_vertices`` before it is read to pose a mesh. Many targets,
+        influence sets or nodes may name one accessor, so these reads are not bounded by the file's
+        size as the mesh data itself is; this bounds them."""
+        self._pose_values += self.json["accessors"][accessor]["count"] * per_element
+        if self._pose_values > self.limits.max_vertices:
+            raise self.error(f"posing its meshes (morph targets, skins) reads more than the "
+                             f"{self.limits.max_vertices} vertex values of LoadLimits.max_vertices; the limit is "
+                             f"passed at {what}")
 
     def accessor(self, index, what, widths=(1, 2, 3, 4)) -> np.ndarray:
         """Accessor ``index`` as a (count, width) array: float64 if float or normalized, else
@@ -563,7 +574,7 @@ def _morphed(doc: _Document, data: _PrimitiveData, weights: tuple) -> _Primitive
             continue
         for name, acc in target.items():
             what = f"{name} of {where} morph target {ti}"
-            _charge_pose_read(doc, acc, what)
+            doc.charge_pose_read(acc, what)
             delta = doc.accessor(acc, what, (3,)).astype(np.float64)
             if not np.all(np.isfinite(delta)):
                 raise doc.error(f"{what} has NaN or Inf displacements")
@@ -573,17 +584,6 @@ def _morphed(doc: _Document, data: _PrimitiveData, weights: tuple) -> _Primitive
     if data.tangents is not None:
         tangents = np.column_stack([unit_rows(morphed["TANGENT"]), data.tangents[:, 3]])
     return replace(data, positions=morphed["POSITION"], normals=normals, tangents=tangents)
-
-
-def _charge_pose_read(doc: _Document, accessor: int, what: str, per_element: int = 1):
-    """Count the elements of ``accessor`` (morph displacements, skin joints, weights and
-    matrices) against ``LoadLimits.max_vertices`` before it is read to pose a mesh. Many targets,
-    influence sets or nodes may name one accessor, so these reads are not bounded by the file's
-    size as the mesh data itself is; this bounds them."""
-    doc._pose_values += doc.json["accessors"][accessor]["count"] * per_element
-    if doc._pose_values > doc.limits.max_vertices:
-        raise doc.error(f"posing its meshes (morph targets, skins) reads more than the {doc.limits.max_vertices} "
-                        f"vertex values of LoadLimits.max_vertices; the limit is passed at {what}")
 
 
 def _joint_matrices(doc: _Document, node: dict, index: int, worlds: dict) -> np.ndarray:
@@ -607,7 +607,7 @@ def _joint_matrices(doc: _Document, node: dict, index: int, worlds: dict) -> np.
     if acc.get("componentType") != 5126 or acc["count"] < len(joints):
         raise doc.error(f"{what} must be {len(joints)} or more float MAT4 matrices, got {acc['count']} of "
                         f"componentType {acc.get('componentType')!r}")
-    _charge_pose_read(doc, skin["inverseBindMatrices"], what, per_element=4)  # a MAT4 holds four VEC4s
+    doc.charge_pose_read(skin["inverseBindMatrices"], what, per_element=4)  # a MAT4 holds four VEC4s
     inverse_bind = doc.accessor(skin["inverseBindMatrices"], what, (16,))[:len(joints)]
     if not np.all(np.isfinite(inverse_bind)):
         raise doc.error(f"{what} has NaN or Inf entries")
@@ -635,7 +635,7 @@ def _skin_influences(doc: _Document, prim: dict, n: int, joints: int, where: str
             raise doc.error(f"{names[1]} of {where} must be floats or normalized unsigned bytes or shorts, "
                             f"got componentType {weight_acc.get('componentType')!r}")
         for name in names:
-            _charge_pose_read(doc, attrs[name], f"{name} of {where}")
+            doc.charge_pose_read(attrs[name], f"{name} of {where}")
         indices = doc.accessor(attrs[names[0]], f"{names[0]} of {where}", (4,)).astype(np.int64)
         if n and int(indices.max()) >= joints:
             raise doc.error(f"{names[0]} of {where} names joint {int(indices.max())}, but its skin has {joints} joints")
