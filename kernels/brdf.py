@@ -361,10 +361,9 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
     def coupled_lobe(base_color: wp.vec3, metallic: float, specular: float, f0_dielectric: wp.vec3):
         """(f0, f90) of the specular lobe whose albedo the diffuse lobe's share is coupled to: the
         dielectric's largest channel in the "gltf" mix, the mixed lobe in the "f0" mix."""
-        f0_d = dielectric_specular_f0(f0_dielectric, specular)
         if wp.static(gltf_mix):
-            return wp.vec3(max_channel(f0_d)), wp.vec3(specular)
-        return wp.lerp(f0_d, base_color, metallic), specular_f90(metallic, specular)
+            return wp.vec3(max_channel(dielectric_specular_f0(f0_dielectric, specular))), wp.vec3(specular)
+        return specular_f0(base_color, metallic, specular, f0_dielectric), specular_f90(metallic, specular)
 
     @wp.func
     def diffuse_share_scale(base_color: wp.vec3, metallic: float, roughness: float, specular: float,
@@ -409,7 +408,7 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
                 dielectric = wp.cw_mul(dielectric, energy_compensation(f0_d, e1))
                 metal = wp.cw_mul(metal, energy_compensation(base_color, e1))
             return wp.lerp(dielectric, metal, metallic), below
-        f0 = wp.lerp(f0_d, base_color, metallic)
+        f0 = specular_f0(base_color, metallic, specular, f0_dielectric)
         F = fresnel_term(f0, specular_f90(metallic, specular), v_dot_h)
         if wp.static(exact_fresnel):
             if eta[0] > 0.0:
