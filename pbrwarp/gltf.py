@@ -398,6 +398,11 @@ class _PrimitiveData:
     material: int | None
     targets: list = field(default_factory=list)  # the primitive's morph targets, as in the JSON
 
+    @property
+    def where(self) -> str:
+        """The primitive, for messages: "mesh M primitive P"."""
+        return f"mesh {self.key[0]} primitive {self.key[1]}"
+
 
 def _accessor_users(gltf: dict) -> dict[int, str]:
     """What uses each accessor a mesh primitive refers to ("POSITION of mesh 0 primitive 1"), for
@@ -553,7 +558,7 @@ def _morph_weights(doc: _Document, node: dict, index: int, data: _PrimitiveData)
     weights = node.get("weights", mesh.get("weights"))
     if weights is None:
         return (0.0,) * len(data.targets)
-    where = f"mesh {data.key[0]} primitive {data.key[1]}"
+    where = data.where
     if not isinstance(weights, list) or len(weights) != len(data.targets):
         count = len(weights) if isinstance(weights, list) else weights
         raise doc.error(f"{source} has {count} morph weights, but {where} has {len(data.targets)} morph "
@@ -564,7 +569,7 @@ def _morph_weights(doc: _Document, node: dict, index: int, data: _PrimitiveData)
 def _morphed(doc: _Document, data: _PrimitiveData, weights: tuple) -> _PrimitiveData:
     """``data`` with its morph targets applied at ``weights``: attribute + sum of weight x
     displacement, normals and tangent directions renormalized (tangents keep their handedness)."""
-    where = f"mesh {data.key[0]} primitive {data.key[1]}"
+    where = data.where
     if all(w == 0.0 for w in weights):
         return data
     morphed = {"POSITION": data.positions, "NORMAL": data.normals,
@@ -754,7 +759,7 @@ class _Builder:
         if "skin" not in node:
             return self._local_primitive(data, weights), world
         matrices = _joint_matrices(self.doc, node, index, worlds)
-        where = f"mesh {data.key[0]} primitive {data.key[1]}"
+        where = data.where
         prim = self.doc.json["meshes"][data.key[0]]["primitives"][data.key[1]]
         influences = _skin_influences(self.doc, prim, len(data.positions), len(matrices), where)
         return self._from_data(_skinned(_morphed(self.doc, data, weights), matrices, influences)), np.eye(4)
@@ -771,7 +776,7 @@ class _Builder:
         if data.material is None:
             material = Material(**_DEFAULT_MATERIAL)
         else:
-            material = self.materials.get(data.material, f"mesh {data.key[0]} primitive {data.key[1]}")
+            material = self.materials.get(data.material, data.where)
         normals = data.normals if data.normals is not None else np.zeros_like(data.positions)
         tangents = data.tangents
         if tangents is None and material.normal_texture is not None and data.uvs is not None:
