@@ -13,7 +13,8 @@ morph targets at their default weights (POSITION, NORMAL and TANGENT); skins pos
 graph's own transforms (the pose a viewer shows before any animation plays);
 EXT_mesh_gpu_instancing, whose instances are expanded into copies; KHR_draco_mesh_compression,
 decoded by DracoPy (the ``draco`` extra; pbrwarp/gltf_draco.py); PNG and JPEG textures (and
-WebP, GIF, BMP, TGA); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
+WebP, GIF, BMP, TGA), and KTX2 (KHR_texture_basisu) decoded by opengl-basisu (the ``ktx2`` extra;
+pbrwarp/gltf_basisu.py); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
 with alphaMode OPAQUE and MASK; KHR_texture_transform, KHR_materials_specular,
 KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_lights_punctual
 (but ``range``); perspective cameras.
@@ -46,6 +47,7 @@ import numpy as np
 from . import validate
 from .camera import Camera
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError
+from .gltf_basisu import decode_ktx2, is_ktx2, ktx2_size, texture_source
 from .gltf_draco import decode_primitive
 from .gltf_notes import _SUPPORTED_EXTENSIONS, _Notes, _ident, _note_unhonoured
 from .lights import DirectionalLight, PointLight, SpotLight
@@ -382,18 +384,30 @@ class _Document:
             else:
                 raise self.error(f"{what} has neither a bufferView nor a uri")
             try:
-                header = open_image(raw, what, self.limits.max_texture_side)
-                width, height = header.size
-                if self._texels + width * height > self.limits.max_texels:
-                    header.close()
-                    raise InputError(f"{what} ({width} x {height}) would bring the file's decoded texels to "
-                                     f"{self._texels + width * height}, more than the {self.limits.max_texels} "
-                                     "of LoadLimits.max_texels")
-                self._texels += width * height
-                self._images[index] = decode_rgba(header, what)
+                if is_ktx2(raw):  # KHR_texture_basisu (gltf_basisu)
+                    size = ktx2_size(raw, what, self.limits.max_texture_side)
+                    self._charge_texels(size, what)
+                    self._images[index] = decode_ktx2(raw, what, size)
+                else:
+                    header = open_image(raw, what, self.limits.max_texture_side)
+                    try:
+                        self._charge_texels(header.size, what)
+                    except InputError:
+                        header.close()
+                        raise
+                    self._images[index] = decode_rgba(header, what)
             except InputError as err:
                 raise self.error(str(err)) from None
         return self._images[index]
+
+    def _charge_texels(self, size: tuple[int, int], what: str):
+        """Count an image of ``size`` (width, height) against LoadLimits.max_texels before it is decoded."""
+        width, height = size
+        if self._texels + width * height > self.limits.max_texels:
+            raise InputError(f"{what} ({width} x {height}) would bring the file's decoded texels to "
+                             f"{self._texels + width * height}, more than the {self.limits.max_texels} "
+                             "of LoadLimits.max_texels")
+        self._texels += width * height
 
 
 # ---------------------------------------------------------------------------- mesh primitives
@@ -869,6 +883,7 @@ class _Materials:
                           "TEXCOORD_0 instead", "texture slot", label)
         # EXT_texture_webp names a WebP image, which Pillow decodes; "source" is then the fallback
         source = tex.get("extensions", {}).get("EXT_texture_webp", {}).get("source", tex.get("source"))
+        source = texture_source(doc, tex, info["index"], label, source)  # KHR_texture_basisu's KTX2 image first
         if source is None:
             raise doc.error(f"{label}: texture {info['index']} has no image source pbrwarp can decode")
         sampler = doc.element("samplers", tex["sampler"], label) if "sampler" in tex else {}

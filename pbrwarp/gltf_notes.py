@@ -49,7 +49,7 @@ _EXTENSIONS = {
     "KHR_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
     "EXT_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
     "KHR_node_visibility": (IGNORED, "nodes it hides are shown"),
-    "KHR_texture_basisu": (IGNORED, "the textures' fallback PNG or JPEG images are used"),
+    "KHR_texture_basisu": (HONOURED, "decoded by opengl-basisu, the ktx2 extra (pbrwarp/gltf_basisu.py)"),
     "EXT_texture_webp": (HONOURED, ""),
     "EXT_texture_avif": (IGNORED, "the textures' fallback PNG or JPEG images are used"),
     "MSFT_texture_dds": (IGNORED, "the textures' fallback PNG or JPEG images are used"),
