@@ -155,6 +155,33 @@ def test_sequential_encoding_keeps_order_and_every_attribute(tmp_path):
     np.testing.assert_allclose(got.colors, colors / 255.0, atol=1e-7)
 
 
+def test_skin_joints_and_weights_come_from_the_draco_data(tmp_path):
+    """JOINTS_0 (unsigned shorts) and WEIGHTS_0 (floats) as Draco generic attributes pose the
+    mesh: vertices weighted fully to joint 1, a node translated by (0, 5, 0), move by it; those
+    weighted to joint 0, at the origin, stay."""
+    corners = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    joints = np.array([[0, 0, 0, 0], [1, 0, 0, 0], [1, 0, 0, 0], [0, 0, 0, 0]], np.uint16)
+    weights = np.array([[1, 0, 0, 0]] * 4, np.float32)
+    raw = DracoPy.encode(corners, faces, quantization_bits=16, preserve_order=True,
+                         generic_attributes={3: joints, 4: weights})
+
+    def skin(b):
+        prim = b.json["meshes"][0]["primitives"][0]
+        for name, uid, ctype in (("JOINTS_0", 3, 5123), ("WEIGHTS_0", 4, 5126)):
+            b.json["accessors"].append({"componentType": ctype, "type": "VEC4", "count": 4})
+            prim["attributes"][name] = len(b.json["accessors"]) - 1
+            prim["extensions"][EXTENSION]["attributes"][name] = uid
+        b.json["nodes"][0]["skin"] = 0
+        b.json["nodes"] += [{"translation": [0, 0, 0]}, {"translation": [0, 5, 0]}]
+        b.json["scenes"][0]["nodes"] += [1, 2]
+        b.json["skins"] = [{"joints": [1, 2]}]
+
+    got = load_gltf(draco_glb(tmp_path / "skinned.glb", raw, tweak=skin)).primitives[0]
+    np.testing.assert_allclose(got.positions, corners + np.array([[0, 0, 0], [0, 5, 0], [0, 5, 0], [0, 0, 0]]),
+                               atol=1e-4)
+
+
 def test_draco_board_loads_as_its_uncompressed_twin():
     """Box/glTF-Draco (exported by COLLADA2GLTF) is the Cesium box that BoxTextured holds
     uncompressed: 12 triangles spanning -0.5..0.5 on every axis, with axis-aligned unit normals."""
