@@ -11,8 +11,10 @@ model's folder); accessors of every component type, normalized or not, interleav
 and sparse, with KHR_mesh_quantization's integer attributes; triangle lists, strips and fans;
 morph targets at their default weights (POSITION, NORMAL and TANGENT); skins posed by the node
 graph's own transforms (the pose a viewer shows before any animation plays);
-EXT_mesh_gpu_instancing, whose instances are expanded into copies; PNG and JPEG textures (and
-WebP, GIF, BMP, TGA); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
+EXT_mesh_gpu_instancing, whose instances are expanded into copies; KHR_draco_mesh_compression,
+decoded by DracoPy (the ``draco`` extra; pbrwarp/gltf_draco.py); PNG and JPEG textures (and
+WebP, GIF, BMP, TGA), and KTX2 (KHR_texture_basisu) decoded by opengl-basisu (the ``ktx2`` extra;
+pbrwarp/gltf_basisu.py); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
 with alphaMode OPAQUE and MASK; KHR_texture_transform, KHR_materials_specular,
 KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_lights_punctual
 (but ``range``); perspective cameras.
@@ -45,6 +47,8 @@ import numpy as np
 from . import validate
 from .camera import Camera
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError
+from .gltf_basisu import decode_ktx2, is_ktx2, ktx2_size, texture_source
+from .gltf_draco import decode_primitive
 from .gltf_notes import _SUPPORTED_EXTENSIONS, _Notes, _ident, _note_unhonoured
 from .lights import DirectionalLight, PointLight, SpotLight
 from .load_limits import LoadLimits
@@ -169,6 +173,8 @@ class _Document:
         self.notes = _Notes(path)  # what the file asks for that pbrwarp does not honour
         self._buffers: dict[int, bytes] = {}
         self._images: dict[int, object] = {}
+        # accessor -> its data decoded from a KHR_draco_mesh_compression primitive (gltf_draco)
+        self.decoded: dict[int, np.ndarray] = {}
 
     def error(self, message: str) -> AssetFormatError:
         return AssetFormatError(f"cannot load {self.path}: {message}")
@@ -304,6 +310,12 @@ class _Document:
                 raise self.error(f"{what} has no bufferView and count {count}: it would allocate {count} zero "
                                  f"elements, more than the {self.limits.max_vertices} of LoadLimits.max_vertices")
 
+    def accessor_layout(self, index: int) -> tuple[np.dtype, int]:
+        """(component dtype, components per element) of accessor ``index``, whose componentType
+        and type check_accessor_sizes has checked."""
+        acc = self.json["accessors"][index]
+        return np.dtype(_COMPONENT_TYPES[acc["componentType"]]), _TYPE_COMPONENTS[acc["type"]]
+
     def charge_pose_read(self, accessor: int, what: str, per_element: int = 1):
         """Count the elements of ``accessor`` (morph displacements, skin joints, weights and
         matrices) against ``LoadLimits.max_vertices`` before it is read to pose a mesh. Many targets,
@@ -317,8 +329,9 @@ class _Document:
 
     def accessor(self, index, what, widths=(1, 2, 3, 4)) -> np.ndarray:
         """Accessor ``index`` as a (count, width) array: float64 if float or normalized, else
-        the stored integer type. Sparse substitution is applied. Its count has been checked by
-        :meth:`check_accessor_sizes`."""
+        the stored integer type; the data decoded for it from a Draco-compressed primitive
+        (``decoded``) where there is some. Sparse substitution is applied. Its count has been
+        checked by :meth:`check_accessor_sizes`."""
         acc = self.element("accessors", index, what)
         what = f"accessor {index} ({what})"
         ctype, kind, count = acc.get("componentType"), acc.get("type"), acc.get("count")
@@ -327,7 +340,9 @@ class _Document:
             expected = " or ".join(k for k, w in _READ_WIDTHS.items() if w in widths)
             raise self.error(f"{what} has type {kind!r}; expected {expected}")
         dtype = np.dtype(_COMPONENT_TYPES[ctype])
-        if "bufferView" in acc:
+        if index in self.decoded:
+            data = self.decoded[index].copy()
+        elif "bufferView" in acc:
             data = self.view_array(acc["bufferView"], acc.get("byteOffset", 0), dtype, count, width, what)
         else:
             data = np.zeros((count, width), dtype)
@@ -369,18 +384,30 @@ class _Document:
             else:
                 raise self.error(f"{what} has neither a bufferView nor a uri")
             try:
-                header = open_image(raw, what, self.limits.max_texture_side)
-                width, height = header.size
-                if self._texels + width * height > self.limits.max_texels:
-                    header.close()
-                    raise InputError(f"{what} ({width} x {height}) would bring the file's decoded texels to "
-                                     f"{self._texels + width * height}, more than the {self.limits.max_texels} "
-                                     "of LoadLimits.max_texels")
-                self._texels += width * height
-                self._images[index] = decode_rgba(header, what)
+                if is_ktx2(raw):  # KHR_texture_basisu (gltf_basisu)
+                    size = ktx2_size(raw, what, self.limits.max_texture_side)
+                    self._charge_texels(size, what)
+                    self._images[index] = decode_ktx2(raw, what, size)
+                else:
+                    header = open_image(raw, what, self.limits.max_texture_side)
+                    try:
+                        self._charge_texels(header.size, what)
+                    except InputError:
+                        header.close()
+                        raise
+                    self._images[index] = decode_rgba(header, what)
             except InputError as err:
                 raise self.error(str(err)) from None
         return self._images[index]
+
+    def _charge_texels(self, size: tuple[int, int], what: str):
+        """Count an image of ``size`` (width, height) against LoadLimits.max_texels before it is decoded."""
+        width, height = size
+        if self._texels + width * height > self.limits.max_texels:
+            raise InputError(f"{what} ({width} x {height}) would bring the file's decoded texels to "
+                             f"{self._texels + width * height}, more than the {self.limits.max_texels} "
+                             "of LoadLimits.max_texels")
+        self._texels += width * height
 
 
 # ---------------------------------------------------------------------------- mesh primitives
@@ -450,6 +477,7 @@ def _read_primitives(doc: _Document) -> dict[tuple[int, int], _PrimitiveData]:
     for mi, mesh in enumerate(doc.json.get("meshes", [])):
         for pi, prim in enumerate(mesh.get("primitives", [])):
             if _primitive_mode(doc, prim, f"mesh {mi} primitive {pi}") in _TRIANGLE_MODES:
+                decode_primitive(doc, (mi, pi), prim)
                 out[mi, pi] = _read_primitive(doc, (mi, pi), prim)
     return out
 
@@ -855,6 +883,7 @@ class _Materials:
                           "TEXCOORD_0 instead", "texture slot", label)
         # EXT_texture_webp names a WebP image, which Pillow decodes; "source" is then the fallback
         source = tex.get("extensions", {}).get("EXT_texture_webp", {}).get("source", tex.get("source"))
+        source = texture_source(doc, tex, info["index"], label, source)  # KHR_texture_basisu's KTX2 image first
         if source is None:
             raise doc.error(f"{label}: texture {info['index']} has no image source pbrwarp can decode")
         sampler = doc.element("samplers", tex["sampler"], label) if "sampler" in tex else {}

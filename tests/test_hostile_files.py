@@ -274,6 +274,51 @@ def load_in_child(path: Path, memory_mb: int = 1536, timeout_s: float = 120) -> 
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+EACH_LOAD = textwrap.dedent("""
+    import json, resource, sys
+    limit = 1536 << 20
+    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    import pbrwarp as pw
+    outcomes = {}
+    for path in sys.argv[1:]:
+        try:
+            pw.Scene.load(path)
+            outcomes[path] = "loaded"
+        except pw.AssetFormatError:
+            outcomes[path] = "refused"
+        except BaseException as err:
+            outcomes[path] = f"{type(err).__name__}: {err}"
+    print(json.dumps(outcomes))
+""")
+
+
+def damaged_copies(raw: bytes, rng, header: int, copies: int = 20) -> list[bytes]:
+    """Damaged copies of a valid stream ``raw``: the empty stream first, then ``copies`` each of
+    truncations, copies with 1 to 5 bytes overwritten, and random bytes after its first
+    ``header`` bytes."""
+    ends = sorted(set(rng.integers(1, len(raw), copies).tolist()) | {header - 1, header})
+    out = [b""] + [raw[:end] for end in ends]
+    for _ in range(copies):
+        flipped = bytearray(raw)
+        for at in rng.integers(0, len(raw), rng.integers(1, 6)):
+            flipped[at] = int(rng.integers(0, 256))
+        out.append(bytes(flipped))
+    return out + [raw[:header] + rng.integers(0, 256, len(raw) - header, dtype=np.uint8).tobytes()
+                  for _ in range(copies)]
+
+
+def load_each_in_child(paths: list[Path], timeout_s: float = 300) -> dict[str, str]:
+    """Scene.load of each path, in one child process under RLIMIT_AS = 1536 MB that must exit
+    normally (a crash in a decoder would kill it): "loaded", "refused" (an AssetFormatError) or
+    the other error, by path; asserts that there was no other error."""
+    proc = subprocess.run([sys.executable, "-c", EACH_LOAD, *map(str, paths)], capture_output=True, text=True,
+                          timeout=timeout_s, cwd=Path(__file__).resolve().parents[1])
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    outcomes = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert set(outcomes.values()) <= {"loaded", "refused"}, outcomes
+    return outcomes
+
+
 def assert_refused_small(outcome: dict, *words: str):
     assert outcome["error"] == "AssetFormatError" and outcome["pbrwarp"], outcome
     for word in words:
