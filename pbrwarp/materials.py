@@ -17,6 +17,7 @@ TEXTURE_SLOTS = (
     ("emissive_texture", True),
     ("specular_texture", False),
     ("specular_color_texture", True),
+    ("anisotropy_texture", False),
 )
 
 
@@ -68,6 +69,16 @@ class Material(validate.Checked):
       colour, in cd/m^2 (a white unlit surface is 1 nit, whatever lights the scene); lights,
       environment, emission, normal and occlusion maps do not change it. It still casts shadows,
       and ``alpha_mode`` and ``double_sided`` apply.
+    - ``anisotropy_strength``: KHR_materials_anisotropy's strength, in [0, 1] (default 0, an
+      isotropic highlight): GGX's alpha along the anisotropy direction becomes
+      mix(alpha, 1, strength^2), so the highlight stretches along it, most on smooth materials
+      and not at all at roughness 1. The direction is the mesh's tangent (its TANGENT attribute,
+      or tangents generated from its uvs) turned by ``anisotropy_rotation`` radians
+      counter-clockwise towards the bitangent (any finite number, default 0).
+      ``anisotropy_texture`` (linear) gives a direction per texel in red and green ([0, 1] mapped
+      to [-1, 1], x along the tangent, y along the bitangent; turned by the rotation too) and
+      multiplies the strength by blue. A mesh with neither tangents nor uvs has no tangent frame
+      and is shaded isotropically.
     - ``name``: for messages (default "").
     - ``complex_ior``: optional ``(n, k)``, the complex index of refraction n + ik of a metal,
       each an RGB triple (n > 0, k >= 0), e.g. from refractiveindex.info at 650, 550 and 450 nm.
@@ -96,6 +107,9 @@ class Material(validate.Checked):
     alpha_mode: str = "OPAQUE"
     alpha_cutoff: float = 0.5
     unlit: bool = False
+    anisotropy_strength: float = 0.0
+    anisotropy_rotation: float = 0.0
+    anisotropy_texture: Texture | None = None
     name: str = field(default="")
     complex_ior: tuple | None = None
 
@@ -113,6 +127,8 @@ class Material(validate.Checked):
         "alpha_mode": lambda material, value: _alpha_mode(value),
         "double_sided": lambda material, value: bool(value),
         "unlit": lambda material, value: bool(value),
+        "anisotropy_strength": lambda material, value: validate.unit_interval(value, "Material.anisotropy_strength"),
+        "anisotropy_rotation": lambda material, value: validate.finite_scalar(value, "Material.anisotropy_rotation"),
         "complex_ior": lambda material, value: None if value is None else _complex_ior(value),
         **{slot: (lambda material, value, slot=slot: Texture.wrap(value, f"Material.{slot}"))
            for slot, _ in TEXTURE_SLOTS},

@@ -40,6 +40,14 @@ def specular_textured_material(**kw):
     return pw.Material(**{**fields, **kw})
 
 
+def anisotropic_material():
+    """KHR_materials_anisotropy with a rotation and a direction texture (a swirl)."""
+    angle = np.linspace(0, 2 * np.pi, 8 * 8).reshape(8, 8)
+    texels = np.stack([0.5 + 0.5 * np.cos(angle), 0.5 + 0.5 * np.sin(angle), np.full_like(angle, 0.8)], -1)
+    return pw.Material(base_color=(0.9, 0.6, 0.3), metallic=0.7, roughness=0.25, anisotropy_strength=0.9,
+                       anisotropy_rotation=0.4, anisotropy_texture=texels.astype(np.float32))
+
+
 def uv_sphere():
     mesh = trimesh.creation.uv_sphere(count=(24, 24))
     uv = np.column_stack([np.arctan2(mesh.vertices[:, 1], mesh.vertices[:, 0]) / (2 * np.pi) + 0.5,
@@ -71,6 +79,8 @@ def scenes():
         ("specular textures", sphere_scene(specular_textured_material(), [POINT], uv_sphere()),
          {"base_color_texture", "metallic_roughness_texture", "emissive_texture", "normal_mapping"}),
         ("shadows", floor_and_sphere, {"directional_lights", "normal_mapping"}),
+        ("anisotropic", sphere_scene(anisotropic_material(), [POINT, DIRECTIONAL], uv_sphere()),
+         {"base_color_texture", "specular_texture", "normal_mapping", "unlit"}),
         ("everything", mixed, set()),
     ]
 
@@ -105,11 +115,12 @@ def test_bare_scene_kernel_has_no_shadow_rays_textures_or_tangent_frames():
     scene = scenes()[0][1]
     source = generated_source(render_kernel(scene_features(scene, upload(scene), shadows=True, spp=1)))
     for absent in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "orthonormal_tangent",
-                   "spot_attenuation", "sample_positional", "multi_jittered_sample"):
+                   "spot_attenuation", "sample_positional", "multi_jittered_sample", "D_GGX_Anisotropic"):
         assert absent not in source, absent
     assert "mesh_query_ray" in source and "D_GGX" in source  # it is the right file
     everything = generated_source(render_kernel(pw.Features.everything(spp=4)))
-    for present in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "spot_attenuation", "multi_jittered_sample"):
+    for present in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "spot_attenuation", "multi_jittered_sample",
+                    "D_GGX_Anisotropic"):
         assert present in everything, present
 
 
