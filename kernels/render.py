@@ -43,8 +43,9 @@ def render_kernel(features):
     """
     f = features
     textured = f.textures
-    brdf = brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf), anisotropic=f.anisotropy)
-    coupled = albedo_coupled_brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf), anisotropic=f.anisotropy)
+    layers = dict(anisotropic=f.anisotropy, iridescent=f.iridescence)
+    brdf = brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf), **layers)
+    coupled = albedo_coupled_brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf), **layers)
     brdf_scaled, diffuse_share_scale = coupled or (None, None)
     # the albedo coupling's normalization depends on the material's inputs alone: where no texture
     # or vertex colour varies them it is computed once per material met, not per light and pixel
@@ -66,7 +67,7 @@ def render_kernel(features):
     if ibl:
         ambient = ambient_for(ibl.method, ibl.fresnel, ibl.samples, ibl.shadowed, f.brdf.energy == "multiscatter",
                               f.brdf.coupling != "none" and f.diffuse and f.specular, brdf, occluded,
-                              f.brdf.metallic_mix == "gltf", f.anisotropy)
+                              f.brdf.metallic_mix == "gltf", f.anisotropy, f.iridescence)
 
     @wp.func
     def base_color_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
@@ -109,6 +110,19 @@ def render_kernel(features):
         return t, strength
 
     @wp.func
+    def thin_film_at(scene: SceneData, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
+        """(strength, IOR, thickness in nm) of KHR_materials_iridescence's film at the hit."""
+        strength = mat.iridescence
+        thickness = mat.iridescence_thickness[1]
+        if wp.static(f.iridescence_texture):
+            if mat.iridescence_texture != NO_TEXTURE:
+                strength = strength * texture_or_one(scene, mat.iridescence_texture, uv)[0]
+            if mat.iridescence_thickness_texture != NO_TEXTURE:
+                g = texture_or_one(scene, mat.iridescence_thickness_texture, uv)[1]
+                thickness = wp.lerp(mat.iridescence_thickness[0], mat.iridescence_thickness[1], g)
+        return wp.vec3(strength, mat.iridescence_ior, thickness)
+
+    @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
               dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3,
               n: wp.vec3, seed: int, stream: int, cache: ShadowCache, scale: wp.vec3, scale_material: int):
@@ -144,6 +158,9 @@ def render_kernel(features):
             anisotropy = float(0.0)
             if wp.static(f.anisotropy):
                 aniso_t, anisotropy = anisotropy_at(scene, h, mat, uv, n)
+            thin_film = wp.vec3(0.0)
+            if wp.static(f.iridescence):
+                thin_film = thin_film_at(scene, mat, uv)
             for i in range(scene.num_lights):
                 ls = sample_light(scene.lights[i], h.p)
                 # light below the geometric surface: shading normals must not leak it through
@@ -175,15 +192,15 @@ def render_kernel(features):
                         scale = diffuse_share_scale(base, metallic, roughness, specular, f0_dielectric)
                         scale_material = h.material
                     fr = brdf_scaled(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
-                                     mat.ior_kappa, f0_dielectric, scale, aniso_t, anisotropy)
+                                     mat.ior_kappa, f0_dielectric, scale, aniso_t, anisotropy, thin_film)
                 else:
                     fr = brdf(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
-                              mat.ior_kappa, f0_dielectric, aniso_t, anisotropy)
+                              mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film)
                 radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
             if wp.static(bool(ibl)):
                 from_environment = ambient(scene, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
                                            roughness, specular, mat.ior_eta, mat.ior_kappa, f0_dielectric, seed,
-                                           stream, aniso_t, anisotropy)
+                                           stream, aniso_t, anisotropy, thin_film)
                 if wp.static(f.occlusion_texture):
                     if mat.occlusion_texture != NO_TEXTURE:
                         occlusion = texture_or_one(scene, mat.occlusion_texture, uv)[0]

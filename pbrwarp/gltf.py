@@ -805,6 +805,8 @@ class _Materials:
         (("extensions", "KHR_materials_specular", "specularTexture"), "specular_texture"),
         (("extensions", "KHR_materials_specular", "specularColorTexture"), "specular_color_texture"),
         (("extensions", "KHR_materials_anisotropy", "anisotropyTexture"), "anisotropy_texture"),
+        (("extensions", "KHR_materials_iridescence", "iridescenceTexture"), "iridescence_texture"),
+        (("extensions", "KHR_materials_iridescence", "iridescenceThicknessTexture"), "iridescence_thickness_texture"),
     )
 
     def __init__(self, doc: _Document):
@@ -826,6 +828,7 @@ class _Materials:
         pbr = spec.get("pbrMetallicRoughness", {})
         ext = spec.get("extensions", {})
         emissive_strength = ext.get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
+        film = ext.get("KHR_materials_iridescence", {})
         textures = {}
         for location, slot in self._SLOTS:
             info = spec
@@ -848,6 +851,10 @@ class _Materials:
             unlit="KHR_materials_unlit" in ext,
             anisotropy_strength=ext.get("KHR_materials_anisotropy", {}).get("anisotropyStrength", 0.0),
             anisotropy_rotation=ext.get("KHR_materials_anisotropy", {}).get("anisotropyRotation", 0.0),
+            iridescence=film.get("iridescenceFactor", 0.0),
+            iridescence_ior=film.get("iridescenceIor", 1.3),
+            iridescence_thickness_min=film.get("iridescenceThicknessMinimum", 100.0),
+            iridescence_thickness_max=film.get("iridescenceThicknessMaximum", 400.0),
             name=spec.get("name", ""),
             **textures,
         )

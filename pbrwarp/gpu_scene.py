@@ -195,6 +195,8 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.unlit = int(mat.unlit)
     row.anisotropy_strength = mat.anisotropy_strength
     row.anisotropy_rotation = wp.vec2(math.cos(mat.anisotropy_rotation), math.sin(mat.anisotropy_rotation))
+    row.iridescence, row.iridescence_ior = mat.iridescence, mat.iridescence_ior
+    row.iridescence_thickness = wp.vec2(mat.iridescence_thickness_min, mat.iridescence_thickness_max)
     slot_index = {slot: texture_slots[(id(tex), srgb)] if has_uvs else -1 for slot, tex, srgb in mat.textures()}
     row.base_color_texture = slot_index.get("base_color_texture", -1)
     row.metallic_roughness_texture = slot_index.get("metallic_roughness_texture", -1)
@@ -204,6 +206,8 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.specular_texture = slot_index.get("specular_texture", -1)
     row.specular_color_texture = slot_index.get("specular_color_texture", -1)
     row.anisotropy_texture = slot_index.get("anisotropy_texture", -1)
+    row.iridescence_texture = slot_index.get("iridescence_texture", -1)
+    row.iridescence_thickness_texture = slot_index.get("iridescence_thickness_texture", -1)
     row.occlusion_strength = mat.occlusion_strength
     return row
 

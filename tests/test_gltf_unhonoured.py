@@ -22,7 +22,6 @@ from test_gltf import Builder
 MATERIAL_EXTENSIONS = {
     "KHR_materials_transmission": "rendered opaque", "KHR_materials_volume": "without absorption",
     "KHR_materials_sheen": "without sheen", "KHR_materials_clearcoat": "without the clear coat",
-    "KHR_materials_iridescence": "without the thin-film",
     "KHR_materials_dispersion": "without dispersion",
     "KHR_materials_diffuse_transmission": "rendered opaque",
     "KHR_materials_pbrSpecularGlossiness": "metallic-roughness values",
@@ -275,7 +274,7 @@ BOARD_NOTES = {
     "AnisotropyRotationTest": [], "AnisotropyStrengthTest": [],
     "AttenuationTest": ["KHR_materials_transmission", "KHR_materials_volume"], "Avocado": AssetFormatError,
     "Box": AssetFormatError, "ClearCoatTest": ["KHR_materials_clearcoat", "alphaMode BLEND"],
-    "EmissiveStrengthTest": [], "IridescenceSuzanne": AssetFormatError,
+    "EmissiveStrengthTest": [], "IridescenceSuzanne": ["KHR_materials_transmission", "KHR_materials_volume"],
     "MeshPrimitiveModes": ["points", "lines", "line loops", "line strips"],
     "MorphPrimitivesTest": [], "MultiUVTest": ["TEXCOORD_1"],
     "RecursiveSkeletons": ["animation"], "SheenCloth": ["KHR_materials_sheen"],

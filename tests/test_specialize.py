@@ -48,6 +48,15 @@ def anisotropic_material():
                        anisotropy_rotation=0.4, anisotropy_texture=texels.astype(np.float32))
 
 
+def iridescent_material():
+    """KHR_materials_iridescence with strength and thickness textures, over a partly metallic base."""
+    rng = np.random.default_rng(2)
+    return pw.Material(base_color=(0.3, 0.5, 0.7), metallic=0.4, roughness=0.2, iridescence=0.9,
+                       iridescence_ior=1.6, iridescence_thickness_min=150.0, iridescence_thickness_max=650.0,
+                       iridescence_texture=rng.uniform(0, 1, (8, 8, 3)).astype(np.float32),
+                       iridescence_thickness_texture=rng.uniform(0, 1, (8, 8, 3)).astype(np.float32))
+
+
 def uv_sphere():
     mesh = trimesh.creation.uv_sphere(count=(24, 24))
     uv = np.column_stack([np.arctan2(mesh.vertices[:, 1], mesh.vertices[:, 0]) / (2 * np.pi) + 0.5,
@@ -80,7 +89,9 @@ def scenes():
          {"base_color_texture", "metallic_roughness_texture", "emissive_texture", "normal_mapping"}),
         ("shadows", floor_and_sphere, {"directional_lights", "normal_mapping"}),
         ("anisotropic", sphere_scene(anisotropic_material(), [POINT, DIRECTIONAL], uv_sphere()),
-         {"base_color_texture", "specular_texture", "normal_mapping", "unlit"}),
+         {"base_color_texture", "specular_texture", "normal_mapping", "unlit", "iridescence"}),
+        ("iridescent", sphere_scene(iridescent_material(), [POINT, SPOT], uv_sphere()),
+         {"base_color_texture", "anisotropy", "normal_mapping"}),
         ("everything", mixed, set()),
     ]
 
@@ -115,12 +126,13 @@ def test_bare_scene_kernel_has_no_shadow_rays_textures_or_tangent_frames():
     scene = scenes()[0][1]
     source = generated_source(render_kernel(scene_features(scene, upload(scene), shadows=True, spp=1)))
     for absent in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "orthonormal_tangent",
-                   "spot_attenuation", "sample_positional", "multi_jittered_sample", "D_GGX_Anisotropic"):
+                   "spot_attenuation", "sample_positional", "multi_jittered_sample", "D_GGX_Anisotropic",
+                   "F_Iridescence"):
         assert absent not in source, absent
     assert "mesh_query_ray" in source and "D_GGX" in source  # it is the right file
     everything = generated_source(render_kernel(pw.Features.everything(spp=4)))
     for present in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "spot_attenuation", "multi_jittered_sample",
-                    "D_GGX_Anisotropic"):
+                    "D_GGX_Anisotropic", "F_Iridescence"):
         assert present in everything, present
 
 
