@@ -6,8 +6,10 @@ import functools
 
 import warp as wp
 
+from .anisotropy import anisotropic_bent_normal
 from .brdf import dielectric_specular_f0, max_channel, specular_f90
 from .dfg import dfg_lookup
+from .iridescence import F_Iridescence
 from .direction_sampling import (orthonormal_basis, pdf_cosine_hemisphere, pdf_ggx_vndf_reflection,
                                  sample_cosine_hemisphere, sample_ggx_vndf)
 from .ibl import (EnvironmentData, F_SchlickRoughness, environment_irradiance, environment_radiance,
@@ -25,16 +27,21 @@ ENVIRONMENT_STREAM = wp.constant(1 << 24)
 
 @functools.cache
 def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multiscatter: bool, coupled: bool, brdf,
-                occluded, gltf_mix: bool = True):
+                occluded, gltf_mix: bool = True, anisotropic: bool = False, iridescent: bool = False):
     """ambient(scene, env, dfg, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
-    kappa, f0_dielectric, seed, stream) -> radiance reflected towards v of the environment's light
+    kappa, f0_dielectric, seed, stream, anisotropy_t=0, anisotropy=0, thin_film=0) -> radiance reflected towards v of the environment's light
     (unoccluded; the caller applies the occlusion texture). ``brdf`` is the render kernel's own
     BRDF, which the Monte Carlo rung integrates; ``multiscatter``, ``coupled`` (the diffuse lobe
     gets only what the specular lobe leaves) and ``gltf_mix`` (glTF's mix of a dielectric and a
     metal, else the mix of their f0; see kernels/brdf.py brdf_for) make the split sum follow the
     same rungs. ``shadowed`` Monte Carlo directions are traced with the render kernel's
     ``occluded(scene, origin, direction, max_t)``, which lets alpha cut-outs through as its shadow
-    rays do."""
+    rays do. ``anisotropic`` compiles in KHR_materials_anisotropy (see brdf_for): the Monte Carlo
+    rung integrates the anisotropic BRDF; the split sum looks the prefiltered environment up
+    about the bent normal (kernels/anisotropy.py), with the isotropic DFG table. ``iridescent``
+    compiles in KHR_materials_iridescence: the Monte Carlo rung integrates the BRDF's thin-film
+    Fresnel; the split sum mixes each lobe's f0 with the film's reflectance at n.v by the factor
+    before the DFG lookup (as the glTF sample viewer does)."""
     lagarde = fresnel == "lagarde"
 
     @wp.func
@@ -52,24 +59,36 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
     @wp.func
     def split_sum(env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), n: wp.vec3, v: wp.vec3,
                   base_color: wp.vec3, metallic: float, roughness: float, specular: float,
-                  f0_dielectric: wp.vec3) -> wp.vec3:
+                  f0_dielectric: wp.vec3, anisotropy_t: wp.vec3, anisotropy: float, thin_film: wp.vec3) -> wp.vec3:
         n_dot_v = wp.max(wp.dot(n, v), MIN_COSINE)
         ab = dfg_lookup(dfg, n_dot_v, roughness)
         f0_d = dielectric_specular_f0(f0_dielectric, specular)
+        f0_m = base_color
+        if wp.static(iridescent):
+            if thin_film[0] > 0.0:
+                film_d = F_Iridescence(1.0, thin_film[1], thin_film[2], wp.min(f0_dielectric, wp.vec3(1.0)), n_dot_v)
+                f0_d = wp.lerp(f0_d, film_d * specular, thin_film[0])
+                f0_m = wp.lerp(f0_m, F_Iridescence(1.0, thin_film[1], thin_film[2], base_color, n_dot_v),
+                               thin_film[0])
         albedo = wp.vec3(0.0)
         below = wp.vec3(0.0)  # the albedo of the lobe above the diffuse one
         below_f0 = wp.vec3(0.0)
         if wp.static(gltf_mix):
             dielectric, below_f0 = lobe_albedo(f0_d, wp.vec3(specular), ab, n_dot_v, roughness)
-            metal, _ = lobe_albedo(base_color, wp.vec3(1.0), ab, n_dot_v, roughness)
+            metal, _ = lobe_albedo(f0_m, wp.vec3(1.0), ab, n_dot_v, roughness)
             albedo = wp.lerp(dielectric, metal, metallic)
             below = wp.vec3(max_channel(dielectric))
             below_f0 = wp.vec3(max_channel(below_f0))
         else:
-            albedo, below_f0 = lobe_albedo(wp.lerp(f0_d, base_color, metallic), specular_f90(metallic, specular), ab,
+            albedo, below_f0 = lobe_albedo(wp.lerp(f0_d, f0_m, metallic), specular_f90(metallic, specular), ab,
                                            n_dot_v, roughness)
             below = albedo
-        out = wp.cw_mul(prefiltered_radiance(env, 2.0 * n_dot_v * n - v, roughness), albedo)
+        mirror = 2.0 * n_dot_v * n - v
+        if wp.static(anisotropic):
+            if anisotropy > 0.0:
+                bent = anisotropic_bent_normal(n, anisotropy_t, v, anisotropy, roughness)
+                mirror = 2.0 * wp.dot(bent, v) * bent - v
+        out = wp.cw_mul(prefiltered_radiance(env, mirror, roughness), albedo)
         diffuse_share = wp.vec3(1.0)
         if wp.static(coupled):
             diffuse_share = wp.max(wp.vec3(1.0) - below, wp.vec3(0.0))
@@ -81,7 +100,8 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
     @wp.func
     def monte_carlo(scene: SceneData, env: EnvironmentData, p: wp.vec3, p_error: wp.vec3, ng: wp.vec3, n: wp.vec3,
                     v: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float, specular: float,
-                    eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, seed: int, stream: int) -> wp.vec3:
+                    eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, seed: int, stream: int,
+                    anisotropy_t: wp.vec3, anisotropy: float, thin_film: wp.vec3) -> wp.vec3:
         """Half the directions cosine-weighted, half GGX visible normals, weighted by the balance
         heuristic (the mixture pdf; Veach 1997): unbiased for every BRDF rung."""
         frame = orthonormal_basis(n)
@@ -113,7 +133,8 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
             if wp.static(shadowed):
                 if occluded(scene, offset_ray_origin(p, p_error, ng, l), l, RAY_FAR):
                     continue
-            f = brdf(n, v, l, base_color, metallic, roughness, specular, eta, kappa, f0_dielectric)
+            f = brdf(n, v, l, base_color, metallic, roughness, specular, eta, kappa, f0_dielectric, anisotropy_t,
+                     anisotropy, thin_film)
             total = total + wp.cw_mul(f, environment_radiance(env, l)) * (l_local[2] / pdf)
         return total / float(samples)
 
@@ -121,10 +142,12 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
     def ambient(scene: SceneData, env: EnvironmentData, dfg: wp.array2d(dtype=wp.vec2), p: wp.vec3, p_error: wp.vec3,
                 ng: wp.vec3, n: wp.vec3, v: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
                 specular: float, eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, seed: int,
-                stream: int) -> wp.vec3:
+                stream: int, anisotropy_t: wp.vec3 = wp.vec3(0.0), anisotropy: float = 0.0,
+                thin_film: wp.vec3 = wp.vec3(0.0)) -> wp.vec3:
         if wp.static(method == "monte_carlo"):
             return monte_carlo(scene, env, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
-                               kappa, f0_dielectric, seed, stream)
-        return split_sum(env, dfg, n, v, base_color, metallic, roughness, specular, f0_dielectric)
+                               kappa, f0_dielectric, seed, stream, anisotropy_t, anisotropy, thin_film)
+        return split_sum(env, dfg, n, v, base_color, metallic, roughness, specular, f0_dielectric, anisotropy_t,
+                         anisotropy, thin_film)
 
     return ambient

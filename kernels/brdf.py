@@ -14,7 +14,9 @@ import functools
 
 import warp as wp
 
+from .anisotropy import D_GGX_Anisotropic, V_SmithGGXCorrelated_Anisotropic, anisotropic_alphas
 from .energy import albedo_tables
+from .iridescence import F_Iridescence
 from .microfacet import (DISTRIBUTIONS, GEOMETRY_MODELS, PI, alpha_from_roughness, blinn_phong_exponent,
                          distribution_for, visibility_for)
 from .robust import MIN_COSINE, safe_normalize
@@ -228,9 +230,10 @@ def albedo_lookup(distribution: str, geometry: str, fresnel: str):
 @functools.cache
 def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", distribution: str = "ggx",
              geometry: str = "schlick_ggx", fresnel: str = "schlick", energy: str = "single",
-             coupling: str = "albedo", model: str = "microfacet", metallic_mix: str = "gltf"):
-    """brdf(n, v, l, base_color, metallic, roughness, specular, eta=0, kappa=0, f0_dielectric=0.04)
-    -> f(l, v). n.v is clamped to MIN_COSINE, n.l <= 0 gives 0; V = G / (4 n.l n.v) is the
+             coupling: str = "albedo", model: str = "microfacet", metallic_mix: str = "gltf",
+             anisotropic: bool = False, iridescent: bool = False):
+    """brdf(n, v, l, base_color, metallic, roughness, specular, eta=0, kappa=0, f0_dielectric=0.04,
+    anisotropy_t=0, anisotropy=0, thin_film=0) -> f(l, v). n.v is clamped to MIN_COSINE, n.l <= 0 gives 0; V = G / (4 n.l n.v) is the
     geometry term in its visibility form, D the distribution, f_d the diffuse term. The names pick
     each term's rung; the defaults are Karis 2013's terms (f_d Lambert, GGX, Smith/Schlick-GGX,
     Schlick, single scattering) in glTF's mix.
@@ -275,26 +278,40 @@ def brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert", 
     Compiled with only the lobes a scene needs: without ``specular_lobe`` (every material has
     specular = 0 and metallic = 0, so f0 = f90 = 0) the Fresnel, D, V and albedo code is not
     generated; without ``diffuse_lobe`` (every material fully metallic) the diffuse code is not.
-    Either gives bit for bit what the full BRDF gives on such materials. (For a caller that
+    Either gives bit for bit what the full BRDF gives on such materials.
+
+    ``anisotropic`` compiles in KHR_materials_anisotropy: where ``anisotropy`` (its strength, in
+    [0, 1]) is above 0, the specular lobes take the anisotropic GGX distribution and
+    height-correlated Smith term (kernels/anisotropy.py) with alpha_t = mix(alpha, 1, strength^2)
+    along the unit tangent direction ``anisotropy_t`` (orthogonal to n) and alpha across it,
+    whatever the distribution and geometry rungs; their Fresnel terms, and the albedo tables of
+    the coupling and multiple-scattering compensation, stay those of the isotropic alpha. Legacy
+    models ignore it.
+
+    ``iridescent`` compiles in KHR_materials_iridescence: where ``thin_film`` = (factor, film
+    IOR, thickness in nm) has a factor above 0, each specular lobe's Fresnel term F becomes
+    mix(F, F_Iridescence(v.h), factor) (kernels/iridescence.py), the film over the metal's f0 =
+    base colour and over the dielectric's min(f0_dielectric, 1), the latter scaled by the specular
+    factor; the coupling's albedo tables stay those of the plain Fresnel term. (For a caller that
     evaluates one material many times, albedo_coupled_brdf_for gives the same BRDF with the
     albedo coupling's normalization taken as an argument.)"""
     _check_rungs(diffuse, distribution, geometry, fresnel, energy, coupling, model, metallic_mix)
     if model != "microfacet":
         return legacy_brdf(diffuse_lobe, specular_lobe, model)
     return _microfacet_brdf(diffuse_lobe, specular_lobe, diffuse, distribution, geometry, fresnel, energy, coupling,
-                            metallic_mix)[0]
+                            metallic_mix, anisotropic, iridescent)[0]
 
 
 @functools.cache
 def albedo_coupled_brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: str = "lambert",
                             distribution: str = "ggx", geometry: str = "schlick_ggx", fresnel: str = "schlick",
                             energy: str = "single", coupling: str = "albedo", model: str = "microfacet",
-                            metallic_mix: str = "gltf"):
+                            metallic_mix: str = "gltf", anisotropic: bool = False, iridescent: bool = False):
     """(brdf_scaled, diffuse_share_scale) of brdf_for's BRDF where it couples its lobes by
     albedo, else None. diffuse_share_scale(base_color, metallic, roughness, specular,
     f0_dielectric) is the coupling's normalization 1 / (1 - E_avg) per channel, and
     brdf_scaled(n, v, l, base_color, metallic, roughness, specular, eta, kappa, f0_dielectric,
-    scale) the BRDF given it: as it depends on the material alone, not on the directions, a
+    scale, anisotropy_t=0, anisotropy=0, thin_film=0) the BRDF given it: as it depends on the material alone, not on the directions, a
     caller may compute it once per material (where no texture or vertex colour varies its inputs)
     rather than for every light and pixel, which saves a table lookup and three divisions per
     evaluation."""
@@ -302,7 +319,8 @@ def albedo_coupled_brdf_for(diffuse_lobe: bool, specular_lobe: bool, diffuse: st
     if model != "microfacet" or coupling != "albedo" or not (diffuse_lobe and specular_lobe):
         return None
     _, brdf_scaled, diffuse_share_scale = _microfacet_brdf(diffuse_lobe, specular_lobe, diffuse, distribution,
-                                                           geometry, fresnel, energy, coupling, metallic_mix)
+                                                           geometry, fresnel, energy, coupling, metallic_mix,
+                                                           anisotropic, iridescent)
     return brdf_scaled, diffuse_share_scale
 
 
@@ -317,7 +335,8 @@ def _check_rungs(diffuse, distribution, geometry, fresnel, energy, coupling, mod
 
 @functools.cache
 def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, distribution: str, geometry: str,
-                     fresnel: str, energy: str, coupling: str, metallic_mix: str):
+                     fresnel: str, energy: str, coupling: str, metallic_mix: str, anisotropic: bool,
+                     iridescent: bool):
     """(brdf, brdf_scaled, diffuse_share_scale) of a microfacet rung set (see brdf_for and
     albedo_coupled_brdf_for)."""
     fresnel_term = _FRESNEL[fresnel]
@@ -392,7 +411,7 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
 
     @wp.func
     def specular_fresnel(base_color: wp.vec3, metallic: float, specular: float, eta: wp.vec3, kappa: wp.vec3,
-                         f0_dielectric: wp.vec3, v_dot_h: float, e1: float):
+                         f0_dielectric: wp.vec3, v_dot_h: float, e1: float, thin_film: wp.vec3):
         """(the Fresnel weight of D V, with multiple-scattering compensation, and the Fresnel of
         the lobe above the diffuse one, for the "fresnel" coupling)."""
         f0_d = dielectric_specular_f0(f0_dielectric, specular)
@@ -403,6 +422,13 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
             if wp.static(exact_fresnel):
                 if eta[0] > 0.0:
                     metal = F_Conductor(eta, kappa, v_dot_h)
+            if wp.static(iridescent):
+                if thin_film[0] > 0.0:
+                    film_d = F_Iridescence(1.0, thin_film[1], thin_film[2], wp.min(f0_dielectric, wp.vec3(1.0)),
+                                           v_dot_h) * specular
+                    film_m = F_Iridescence(1.0, thin_film[1], thin_film[2], base_color, v_dot_h)
+                    dielectric = wp.lerp(dielectric, film_d, thin_film[0])
+                    metal = wp.lerp(metal, film_m, thin_film[0])
             below = dielectric
             if wp.static(multiscatter):
                 dielectric = wp.cw_mul(dielectric, energy_compensation(f0_d, e1))
@@ -413,6 +439,9 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
         if wp.static(exact_fresnel):
             if eta[0] > 0.0:
                 F = wp.lerp(F_Exact(f0_d, f90_d, v_dot_h), F_Conductor(eta, kappa, v_dot_h), metallic)
+        if wp.static(iridescent):
+            if thin_film[0] > 0.0:
+                F = wp.lerp(F, F_Iridescence(1.0, thin_film[1], thin_film[2], f0, v_dot_h), thin_film[0])
         below = F
         if wp.static(multiscatter):
             F = wp.cw_mul(F, energy_compensation(f0, e1))
@@ -421,7 +450,8 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
     @wp.func
     def brdf_scaled(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
                     specular: float, eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3,
-                    diffuse_scale: wp.vec3) -> wp.vec3:
+                    diffuse_scale: wp.vec3, anisotropy_t: wp.vec3 = wp.vec3(0.0), anisotropy: float = 0.0,
+                    thin_film: wp.vec3 = wp.vec3(0.0)) -> wp.vec3:
         n_dot_l = wp.dot(n, l)
         if n_dot_l <= 0.0:
             return wp.vec3(0.0)
@@ -436,9 +466,19 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
             e1 = float(1.0)
             if wp.static(multiscatter):
                 e1 = lookup(n_dot_v, roughness)[0]
-            F, below = specular_fresnel(base_color, metallic, specular, eta, kappa, f0_dielectric, v_dot_h, e1)
+            F, below = specular_fresnel(base_color, metallic, specular, eta, kappa, f0_dielectric, v_dot_h, e1,
+                                        thin_film)
             D = ndf(alpha, n_dot_h, wp.dot(n_cross_h, n_cross_h))
-            out = F * (D * visibility(n_dot_v, n_dot_l, roughness))
+            V = visibility(n_dot_v, n_dot_l, roughness)
+            if wp.static(anisotropic):
+                if anisotropy > 0.0:
+                    across = wp.cross(n, anisotropy_t)
+                    a = anisotropic_alphas(alpha, anisotropy)
+                    D = D_GGX_Anisotropic(a[0], a[1], n_dot_h, wp.dot(anisotropy_t, h), wp.dot(across, h))
+                    V = V_SmithGGXCorrelated_Anisotropic(a[0], a[1], n_dot_v, n_dot_l, wp.dot(anisotropy_t, v),
+                                                         wp.dot(across, v), wp.dot(anisotropy_t, l),
+                                                         wp.dot(across, l))
+            out = F * (D * V)
             if wp.static(diffuse_lobe):
                 share = wp.vec3(1.0)
                 if wp.static(fresnel_coupling):
@@ -459,23 +499,27 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
     @wp.func
     def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
              specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0),
-             f0_dielectric: wp.vec3 = wp.vec3(DIELECTRIC_F0)) -> wp.vec3:
+             f0_dielectric: wp.vec3 = wp.vec3(DIELECTRIC_F0), anisotropy_t: wp.vec3 = wp.vec3(0.0),
+             anisotropy: float = 0.0, thin_film: wp.vec3 = wp.vec3(0.0)) -> wp.vec3:
         if wp.dot(n, l) <= 0.0:
             return wp.vec3(0.0)  # as brdf_scaled does, but before the scale's table lookup
         return brdf_scaled(n, v, l, base_color, metallic, roughness, specular, eta, kappa, f0_dielectric,
-                           diffuse_share_scale(base_color, metallic, roughness, specular, f0_dielectric))
+                           diffuse_share_scale(base_color, metallic, roughness, specular, f0_dielectric),
+                           anisotropy_t, anisotropy, thin_film)
 
     return brdf, brdf_scaled, diffuse_share_scale
 
 
 @functools.cache
 def legacy_brdf(diffuse_lobe: bool, specular_lobe: bool, model: str):
-    """The non-PBR baselines: Lambert plus a normalized Phong or Blinn-Phong lobe (see brdf_for)."""
+    """The non-PBR baselines: Lambert plus a normalized Phong or Blinn-Phong lobe (see brdf_for);
+    isotropic and without thin films, whatever ``anisotropy`` and ``thin_film`` say."""
 
     @wp.func
     def brdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float,
              specular: float, eta: wp.vec3 = wp.vec3(0.0), kappa: wp.vec3 = wp.vec3(0.0),
-             f0_dielectric: wp.vec3 = wp.vec3(DIELECTRIC_F0)) -> wp.vec3:
+             f0_dielectric: wp.vec3 = wp.vec3(DIELECTRIC_F0), anisotropy_t: wp.vec3 = wp.vec3(0.0),
+             anisotropy: float = 0.0, thin_film: wp.vec3 = wp.vec3(0.0)) -> wp.vec3:
         n_dot_l = wp.dot(n, l)
         if n_dot_l <= 0.0:
             return wp.vec3(0.0)

@@ -8,6 +8,7 @@ import functools
 import warp as wp
 
 from .ambient import ambient_for
+from .anisotropy import anisotropy_direction
 from .brdf import albedo_coupled_brdf_for, brdf_for
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
@@ -42,8 +43,9 @@ def render_kernel(features):
     """
     f = features
     textured = f.textures
-    brdf = brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf))
-    coupled = albedo_coupled_brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf))
+    layers = dict(anisotropic=f.anisotropy, iridescent=f.iridescence)
+    brdf = brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf), **layers)
+    coupled = albedo_coupled_brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf), **layers)
     brdf_scaled, diffuse_share_scale = coupled or (None, None)
     # the albedo coupling's normalization depends on the material's inputs alone: where no texture
     # or vertex colour varies them it is computed once per material met, not per light and pixel
@@ -65,7 +67,7 @@ def render_kernel(features):
     if ibl:
         ambient = ambient_for(ibl.method, ibl.fresnel, ibl.samples, ibl.shadowed, f.brdf.energy == "multiscatter",
                               f.brdf.coupling != "none" and f.diffuse and f.specular, brdf, occluded,
-                              f.brdf.metallic_mix == "gltf")
+                              f.brdf.metallic_mix == "gltf", f.anisotropy, f.iridescence)
 
     @wp.func
     def base_color_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
@@ -78,6 +80,47 @@ def render_kernel(features):
             bc = texture_or_one(scene, mat.base_color_texture, uv)
             base = wp.cw_mul(base, wp.vec3(bc[0], bc[1], bc[2]))
         return base
+
+    @wp.func
+    def anisotropy_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2, n: wp.vec3):
+        """(the unit anisotropy direction, the strength) of KHR_materials_anisotropy at the hit,
+        with ``n`` the shading normal; strength 0 where there is no tangent frame."""
+        strength = mat.anisotropy_strength
+        if strength <= 0.0:
+            return wp.vec3(0.0), 0.0
+        rotation = mat.anisotropy_rotation
+        direction = rotation
+        if wp.static(f.anisotropy_texture):
+            if mat.anisotropy_texture != NO_TEXTURE:
+                texel = texture_or_one(scene, mat.anisotropy_texture, uv)
+                d = wp.vec2(2.0 * texel[0] - 1.0, 2.0 * texel[1] - 1.0)
+                length = wp.length(d)
+                if length > 0.0:
+                    d = d / length
+                else:
+                    d = wp.vec2(1.0, 0.0)
+                direction = wp.vec2(rotation[0] * d[0] - rotation[1] * d[1], rotation[1] * d[0] + rotation[0] * d[1])
+                strength = strength * texel[2]
+        front = n
+        if h.back_face == 1:
+            front = -n
+        t = anisotropy_direction(front, interpolate(scene.tangents, h), direction)
+        if wp.dot(t, t) == 0.0:
+            strength = 0.0
+        return t, strength
+
+    @wp.func
+    def thin_film_at(scene: SceneData, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
+        """(strength, IOR, thickness in nm) of KHR_materials_iridescence's film at the hit."""
+        strength = mat.iridescence
+        thickness = mat.iridescence_thickness[1]
+        if wp.static(f.iridescence_texture):
+            if mat.iridescence_texture != NO_TEXTURE:
+                strength = strength * texture_or_one(scene, mat.iridescence_texture, uv)[0]
+            if mat.iridescence_thickness_texture != NO_TEXTURE:
+                g = texture_or_one(scene, mat.iridescence_thickness_texture, uv)[1]
+                thickness = wp.lerp(mat.iridescence_thickness[0], mat.iridescence_thickness[1], g)
+        return wp.vec3(strength, mat.iridescence_ior, thickness)
 
     @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
@@ -111,6 +154,13 @@ def render_kernel(features):
             if wp.static(f.specular_color_texture):
                 sc = texture_or_one(scene, mat.specular_color_texture, uv)
                 f0_dielectric = wp.cw_mul(f0_dielectric, wp.vec3(sc[0], sc[1], sc[2]))
+            aniso_t = wp.vec3(0.0)
+            anisotropy = float(0.0)
+            if wp.static(f.anisotropy):
+                aniso_t, anisotropy = anisotropy_at(scene, h, mat, uv, n)
+            thin_film = wp.vec3(0.0)
+            if wp.static(f.iridescence):
+                thin_film = thin_film_at(scene, mat, uv)
             for i in range(scene.num_lights):
                 ls = sample_light(scene.lights[i], h.p)
                 # light below the geometric surface: shading normals must not leak it through
@@ -142,15 +192,15 @@ def render_kernel(features):
                         scale = diffuse_share_scale(base, metallic, roughness, specular, f0_dielectric)
                         scale_material = h.material
                     fr = brdf_scaled(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
-                                     mat.ior_kappa, f0_dielectric, scale)
+                                     mat.ior_kappa, f0_dielectric, scale, aniso_t, anisotropy, thin_film)
                 else:
                     fr = brdf(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
-                              mat.ior_kappa, f0_dielectric)
+                              mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film)
                 radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
             if wp.static(bool(ibl)):
                 from_environment = ambient(scene, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
                                            roughness, specular, mat.ior_eta, mat.ior_kappa, f0_dielectric, seed,
-                                           stream)
+                                           stream, aniso_t, anisotropy, thin_film)
                 if wp.static(f.occlusion_texture):
                     if mat.occlusion_texture != NO_TEXTURE:
                         occlusion = texture_or_one(scene, mat.occlusion_texture, uv)[0]

@@ -33,6 +33,13 @@ class MaterialData:
     alpha_mask: int
     # 1 for an unlit material (KHR_materials_unlit): its radiance is its base colour, lights ignored
     unlit: int
+    # KHR_materials_anisotropy: strength in [0, 1] and the direction's rotation (cos, sin) from the tangent
+    anisotropy_strength: float
+    anisotropy_rotation: wp.vec2
+    # KHR_materials_iridescence: strength, the film's IOR, its thickness (min, max) in nm
+    iridescence: float
+    iridescence_ior: float
+    iridescence_thickness: wp.vec2
     # indices into SceneData.textures, NO_TEXTURE when the slot is empty
     base_color_texture: int
     metallic_roughness_texture: int
@@ -41,6 +48,9 @@ class MaterialData:
     occlusion_texture: int
     specular_texture: int
     specular_color_texture: int
+    anisotropy_texture: int
+    iridescence_texture: int
+    iridescence_thickness_texture: int
 
 
 @wp.struct

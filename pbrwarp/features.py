@@ -41,6 +41,12 @@ class Features:
     emission: bool = True
     # KHR_materials_unlit: materials whose radiance is their base colour
     unlit: bool = True
+    # KHR_materials_anisotropy: highlights stretched along a tangent direction
+    anisotropy: bool = True
+    anisotropy_texture: bool = True
+    # KHR_materials_iridescence: a thin film's interference colours in the Fresnel terms
+    iridescence: bool = True
+    iridescence_texture: bool = True
     diffuse: bool = True
     specular: bool = True
     point_lights: bool = True
@@ -68,7 +74,8 @@ class Features:
     @property
     def textures(self) -> bool:
         return (self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture
-                or self.normal_mapping or self.specular_texture or self.specular_color_texture)
+                or self.normal_mapping or self.specular_texture or self.specular_color_texture
+                or self.anisotropy_texture or self.iridescence_texture)
 
     @classmethod
     def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), shadows="rays", ibl: IBL = IBL(),
@@ -222,6 +229,26 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
         if present and not specular_lobe:
             present, why = False, f"no {label}s read: no specular lobe"
         add(name, present, why)
+    stretched = [m for m in lit_mats if m.anisotropy_strength > 0.0] if specular_lobe else []
+    add("anisotropy", stretched, f"anisotropic highlights (KHR_materials_anisotropy): "
+        f"{_count(len(stretched), 'material')}, anisotropic GGX with height-correlated Smith masking"
+        if stretched else "no anisotropy: every lit material has anisotropy_strength 0" if specular_lobe
+        else "no anisotropy: no specular lobe")
+    present, why = slot("anisotropy_texture", "anisotropy texture")
+    if present and not stretched:
+        present, why = False, "no anisotropy textures read: no anisotropic material"
+    add("anisotropy_texture", present, why)
+    filmed = [m for m in lit_mats if m.iridescence > 0.0] if specular_lobe else []
+    add("iridescence", filmed, f"thin-film iridescence (KHR_materials_iridescence): {_count(len(filmed), 'material')}, "
+        "Belcour & Barla 2017's Fresnel of the film" if filmed
+        else "no iridescence: every lit material has iridescence 0" if specular_lobe
+        else "no iridescence: no specular lobe")
+    users = sum(1 for r in rows if r.iridescence_texture >= 0 or r.iridescence_thickness_texture >= 0)
+    present, why = users > 0, (f"iridescence textures: {users} of {len(rows)} meshes" if users
+                               else "no iridescence textures")
+    if present and not filmed:
+        present, why = False, "no iridescence textures read: no iridescent material"
+    add("iridescence_texture", present, why)
     present, why = slot("normal_texture", "normal map")
     add("normal_mapping", present, why + ("" if present else ": no tangent frames"))
     unlit = sum(1 for m in mats if m.unlit)

@@ -807,8 +807,13 @@ class _Builder:
             material = self.materials.get(data.material, data.where)
         normals = data.normals if data.normals is not None else np.zeros_like(data.positions)
         tangents = data.tangents
-        if tangents is None and material.normal_texture is not None and data.uvs is not None:
-            tangents = generate_tangents(data.positions, normals, data.uvs, data.faces)
+        if tangents is None and (material.normal_texture is not None or material.anisotropy_strength > 0.0):
+            if data.uvs is not None:
+                tangents = generate_tangents(data.positions, normals, data.uvs, data.faces)
+            elif material.anisotropy_strength > 0.0:
+                self.doc.notes.add("anisotropy without tangents", "KHR_materials_anisotropy not applied on "
+                                   "{subjects}: no TANGENT nor TEXCOORD_0 to give its direction (shaded isotropic)",
+                                   "mesh", data.key, f"{data.key[0]} primitive {data.key[1]}")
         try:
             return Primitive(data.positions, data.faces, material, normals, data.uvs, tangents, data.colors)
         except (InputError, InputTypeError) as err:
@@ -827,6 +832,9 @@ class _Materials:
         (("emissiveTexture",), "emissive_texture"),
         (("extensions", "KHR_materials_specular", "specularTexture"), "specular_texture"),
         (("extensions", "KHR_materials_specular", "specularColorTexture"), "specular_color_texture"),
+        (("extensions", "KHR_materials_anisotropy", "anisotropyTexture"), "anisotropy_texture"),
+        (("extensions", "KHR_materials_iridescence", "iridescenceTexture"), "iridescence_texture"),
+        (("extensions", "KHR_materials_iridescence", "iridescenceThicknessTexture"), "iridescence_thickness_texture"),
     )
 
     def __init__(self, doc: _Document):
@@ -848,6 +856,7 @@ class _Materials:
         pbr = spec.get("pbrMetallicRoughness", {})
         ext = spec.get("extensions", {})
         emissive_strength = ext.get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
+        film = ext.get("KHR_materials_iridescence", {})
         textures = {}
         for location, slot in self._SLOTS:
             info = spec
@@ -868,6 +877,12 @@ class _Materials:
             alpha_mode=spec.get("alphaMode", "OPAQUE"),
             alpha_cutoff=spec.get("alphaCutoff", 0.5),
             unlit="KHR_materials_unlit" in ext,
+            anisotropy_strength=ext.get("KHR_materials_anisotropy", {}).get("anisotropyStrength", 0.0),
+            anisotropy_rotation=ext.get("KHR_materials_anisotropy", {}).get("anisotropyRotation", 0.0),
+            iridescence=film.get("iridescenceFactor", 0.0),
+            iridescence_ior=film.get("iridescenceIor", 1.3),
+            iridescence_thickness_min=film.get("iridescenceThicknessMinimum", 100.0),
+            iridescence_thickness_max=film.get("iridescenceThicknessMaximum", 400.0),
             name=spec.get("name", ""),
             **textures,
         )

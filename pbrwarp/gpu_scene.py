@@ -80,7 +80,8 @@ class GpuScene:
 def _primitive_tangents(prim):
     if prim.tangents is not None:
         return prim.tangents
-    if prim.material.normal_texture is None or prim.uvs is None:
+    needs_frame = prim.material.normal_texture is not None or prim.material.anisotropy_strength > 0.0
+    if not needs_frame or prim.uvs is None:
         return np.zeros((len(prim.positions), 4))
     from .tangents import generate_tangents
 
@@ -192,6 +193,10 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
         row.ior_kappa = _float32_vector(mat.complex_ior[1], "Material.complex_ior k")
     row.alpha_mask = int(mat.alpha_mode == "MASK")
     row.unlit = int(mat.unlit)
+    row.anisotropy_strength = mat.anisotropy_strength
+    row.anisotropy_rotation = wp.vec2(math.cos(mat.anisotropy_rotation), math.sin(mat.anisotropy_rotation))
+    row.iridescence, row.iridescence_ior = mat.iridescence, mat.iridescence_ior
+    row.iridescence_thickness = wp.vec2(mat.iridescence_thickness_min, mat.iridescence_thickness_max)
     slot_index = {slot: texture_slots[(id(tex), srgb)] if has_uvs else -1 for slot, tex, srgb in mat.textures()}
     row.base_color_texture = slot_index.get("base_color_texture", -1)
     row.metallic_roughness_texture = slot_index.get("metallic_roughness_texture", -1)
@@ -200,6 +205,9 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.occlusion_texture = slot_index.get("occlusion_texture", -1)
     row.specular_texture = slot_index.get("specular_texture", -1)
     row.specular_color_texture = slot_index.get("specular_color_texture", -1)
+    row.anisotropy_texture = slot_index.get("anisotropy_texture", -1)
+    row.iridescence_texture = slot_index.get("iridescence_texture", -1)
+    row.iridescence_thickness_texture = slot_index.get("iridescence_thickness_texture", -1)
     row.occlusion_strength = mat.occlusion_strength
     return row
 

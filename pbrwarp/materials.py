@@ -17,6 +17,9 @@ TEXTURE_SLOTS = (
     ("emissive_texture", True),
     ("specular_texture", False),
     ("specular_color_texture", True),
+    ("anisotropy_texture", False),
+    ("iridescence_texture", False),
+    ("iridescence_thickness_texture", False),
 )
 
 
@@ -68,6 +71,24 @@ class Material(validate.Checked):
       colour, in cd/m^2 (a white unlit surface is 1 nit, whatever lights the scene); lights,
       environment, emission, normal and occlusion maps do not change it. It still casts shadows,
       and ``alpha_mode`` and ``double_sided`` apply.
+    - ``anisotropy_strength``: KHR_materials_anisotropy's strength, in [0, 1] (default 0, an
+      isotropic highlight): GGX's alpha along the anisotropy direction becomes
+      mix(alpha, 1, strength^2), so the highlight stretches along it, most on smooth materials
+      and not at all at roughness 1. The direction is the mesh's tangent (its TANGENT attribute,
+      or tangents generated from its uvs) turned by ``anisotropy_rotation`` radians
+      counter-clockwise towards the bitangent (any finite number, default 0).
+      ``anisotropy_texture`` (linear) gives a direction per texel in red and green ([0, 1] mapped
+      to [-1, 1], x along the tangent, y along the bitangent; turned by the rotation too) and
+      multiplies the strength by blue. A mesh with neither tangents nor uvs has no tangent frame
+      and is shaded isotropically.
+    - ``iridescence``: KHR_materials_iridescence's strength of a thin dielectric film over the
+      surface, in [0, 1] (default 0, no film), times the red channel of ``iridescence_texture``
+      (linear): each specular lobe's Fresnel term becomes mix(F, F_film, iridescence), F_film the
+      film's interference colours (Belcour & Barla 2017). The film's index of refraction
+      ``iridescence_ior`` (>= 1, default 1.3) and thickness in nanometres:
+      ``iridescence_thickness_max`` (>= 0, default 400), or, with
+      ``iridescence_thickness_texture``, mix(``iridescence_thickness_min`` (>= 0, default 100),
+      max, its green channel (linear)).
     - ``name``: for messages (default "").
     - ``complex_ior``: optional ``(n, k)``, the complex index of refraction n + ik of a metal,
       each an RGB triple (n > 0, k >= 0), e.g. from refractiveindex.info at 650, 550 and 450 nm.
@@ -96,6 +117,15 @@ class Material(validate.Checked):
     alpha_mode: str = "OPAQUE"
     alpha_cutoff: float = 0.5
     unlit: bool = False
+    anisotropy_strength: float = 0.0
+    anisotropy_rotation: float = 0.0
+    anisotropy_texture: Texture | None = None
+    iridescence: float = 0.0
+    iridescence_ior: float = 1.3
+    iridescence_thickness_min: float = 100.0
+    iridescence_thickness_max: float = 400.0
+    iridescence_texture: Texture | None = None
+    iridescence_thickness_texture: Texture | None = None
     name: str = field(default="")
     complex_ior: tuple | None = None
 
@@ -113,6 +143,12 @@ class Material(validate.Checked):
         "alpha_mode": lambda material, value: _alpha_mode(value),
         "double_sided": lambda material, value: bool(value),
         "unlit": lambda material, value: bool(value),
+        "anisotropy_strength": lambda material, value: validate.unit_interval(value, "Material.anisotropy_strength"),
+        "anisotropy_rotation": lambda material, value: validate.finite_scalar(value, "Material.anisotropy_rotation"),
+        "iridescence": lambda material, value: validate.unit_interval(value, "Material.iridescence"),
+        "iridescence_ior": lambda material, value: _film_ior(value),
+        "iridescence_thickness_min": lambda material, value: _thickness(value, "Material.iridescence_thickness_min"),
+        "iridescence_thickness_max": lambda material, value: _thickness(value, "Material.iridescence_thickness_max"),
         "complex_ior": lambda material, value: None if value is None else _complex_ior(value),
         **{slot: (lambda material, value, slot=slot: Texture.wrap(value, f"Material.{slot}"))
            for slot, _ in TEXTURE_SLOTS},
@@ -156,6 +192,21 @@ def _ior(value) -> float:
     x = validate.finite_scalar(value, "Material.ior")
     if x != 0.0 and x < 1.0:
         raise InputError(f"Material.ior must be >= 1 (or 0, meaning infinite, as KHR_materials_ior allows), got {x}")
+    return x
+
+
+def _film_ior(value) -> float:
+    x = validate.finite_scalar(value, "Material.iridescence_ior")
+    if x < 1.0:
+        raise InputError(f"Material.iridescence_ior must be >= 1 (a dielectric film), got {x}")
+    return x
+
+
+def _thickness(value, what: str) -> float:
+    """A film thickness in nanometres: finite, >= 0, and within float32's range."""
+    x = validate.non_negative(value, what)
+    if x > 1.0e6:
+        raise InputError(f"{what} is in nanometres and must be at most 1e6 (1 mm: no longer a thin film), got {x}")
     return x
 
 

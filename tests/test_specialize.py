@@ -40,6 +40,23 @@ def specular_textured_material(**kw):
     return pw.Material(**{**fields, **kw})
 
 
+def anisotropic_material():
+    """KHR_materials_anisotropy with a rotation and a direction texture (a swirl)."""
+    angle = np.linspace(0, 2 * np.pi, 8 * 8).reshape(8, 8)
+    texels = np.stack([0.5 + 0.5 * np.cos(angle), 0.5 + 0.5 * np.sin(angle), np.full_like(angle, 0.8)], -1)
+    return pw.Material(base_color=(0.9, 0.6, 0.3), metallic=0.7, roughness=0.25, anisotropy_strength=0.9,
+                       anisotropy_rotation=0.4, anisotropy_texture=texels.astype(np.float32))
+
+
+def iridescent_material():
+    """KHR_materials_iridescence with strength and thickness textures, over a partly metallic base."""
+    rng = np.random.default_rng(2)
+    return pw.Material(base_color=(0.3, 0.5, 0.7), metallic=0.4, roughness=0.2, iridescence=0.9,
+                       iridescence_ior=1.6, iridescence_thickness_min=150.0, iridescence_thickness_max=650.0,
+                       iridescence_texture=rng.uniform(0, 1, (8, 8, 3)).astype(np.float32),
+                       iridescence_thickness_texture=rng.uniform(0, 1, (8, 8, 3)).astype(np.float32))
+
+
 def uv_sphere():
     mesh = trimesh.creation.uv_sphere(count=(24, 24))
     uv = np.column_stack([np.arctan2(mesh.vertices[:, 1], mesh.vertices[:, 0]) / (2 * np.pi) + 0.5,
@@ -71,6 +88,10 @@ def scenes():
         ("specular textures", sphere_scene(specular_textured_material(), [POINT], uv_sphere()),
          {"base_color_texture", "metallic_roughness_texture", "emissive_texture", "normal_mapping"}),
         ("shadows", floor_and_sphere, {"directional_lights", "normal_mapping"}),
+        ("anisotropic", sphere_scene(anisotropic_material(), [POINT, DIRECTIONAL], uv_sphere()),
+         {"base_color_texture", "specular_texture", "normal_mapping", "unlit", "iridescence"}),
+        ("iridescent", sphere_scene(iridescent_material(), [POINT, SPOT], uv_sphere()),
+         {"base_color_texture", "anisotropy", "normal_mapping"}),
         ("everything", mixed, set()),
     ]
 
@@ -105,11 +126,13 @@ def test_bare_scene_kernel_has_no_shadow_rays_textures_or_tangent_frames():
     scene = scenes()[0][1]
     source = generated_source(render_kernel(scene_features(scene, upload(scene), shadows=True, spp=1)))
     for absent in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "orthonormal_tangent",
-                   "spot_attenuation", "sample_positional", "multi_jittered_sample"):
+                   "spot_attenuation", "sample_positional", "multi_jittered_sample", "D_GGX_Anisotropic",
+                   "F_Iridescence"):
         assert absent not in source, absent
     assert "mesh_query_ray" in source and "D_GGX" in source  # it is the right file
     everything = generated_source(render_kernel(pw.Features.everything(spp=4)))
-    for present in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "spot_attenuation", "multi_jittered_sample"):
+    for present in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "spot_attenuation", "multi_jittered_sample",
+                    "D_GGX_Anisotropic", "F_Iridescence"):
         assert present in everything, present
 
 
