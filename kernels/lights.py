@@ -28,6 +28,8 @@ class LightData:
     # glTF spot cone: attenuation = saturate(cos(angle) * cone_scale + cone_offset)^2
     cone_scale: float
     cone_offset: float
+    # KHR_lights_punctual's range as 1 / range^4, 0 for none
+    inv_range4: float
 
 
 @wp.struct
@@ -44,6 +46,15 @@ def spot_attenuation(light: LightData, to_light: wp.vec3) -> float:
     cos_angle = wp.dot(light.direction, -to_light)
     a = wp.clamp(cos_angle * light.cone_scale + light.cone_offset, 0.0, 1.0)
     return a * a
+
+
+@wp.func
+def range_window(light: LightData, dist_sq: float) -> float:
+    """KHR_lights_punctual's window of the inverse square law, clamp(1 - (d / range)^4, 0, 1):
+    1 at the light, 0 from its range on, 1 everywhere without a range."""
+    if light.inv_range4 == 0.0:
+        return 1.0  # and no 0 * Inf where d^4 overflows float32
+    return wp.clamp(1.0 - dist_sq * dist_sq * light.inv_range4, 0.0, 1.0)
 
 
 @wp.func
@@ -67,7 +78,8 @@ def sample_positional(light: LightData, p: wp.vec3) -> LightSample:
     else:
         out.to_light = -light.direction
     out.distance = dist
-    out.irradiance = clamp_to_float32_max(light.intensity / wp.max(dist_sq, MIN_DISTANCE_SQ))
+    out.irradiance = clamp_to_float32_max(light.intensity * (range_window(light, dist_sq)
+                                                             / wp.max(dist_sq, MIN_DISTANCE_SQ)))
     return out
 
 

@@ -17,13 +17,13 @@ WebP, GIF, BMP, TGA), and KTX2 (KHR_texture_basisu) decoded by opengl-basisu (th
 pbrwarp/gltf_basisu.py); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
 with alphaMode OPAQUE and MASK; KHR_texture_transform, KHR_materials_specular,
 KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_lights_punctual
-(but ``range``); perspective cameras.
+(with ``range``); perspective cameras.
 
 Everything else a file asks for is named in a warning at load, once per kind ("KHR_materials_sheen
 on 3 materials ('cloth', ...) ignored: rendered without sheen"), saying what is rendered instead,
 and kept in ``GltfContent.load_warnings`` (``Scene.load_warnings``, listed by ``pw.explain``): the
 extensions ``_EXTENSIONS`` marks IGNORED and unknown ones, TEXCOORD_1 and above (sampled as
-TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification, light ``range``,
+TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification,
 alphaMode BLEND (rendered opaque), animations (the nodes' stored static pose is shown), points and
 lines (skipped), cameras other than perspective (skipped) and scenes other than the default.
 pbrwarp/gltf_notes.py makes the notes (the reader adds the ones it can only make where it reads:
@@ -1066,7 +1066,8 @@ def _numbers(doc: _Document, value, count: int, what: str) -> np.ndarray:
 
 def _node_light(doc: _Document, index: int, world: np.ndarray) -> list:
     """The KHR_lights_punctual light on node ``index``, placed by its world matrix (lights shine
-    down the node's -Z). Light ``range`` is ignored: pbrwarp lights follow the inverse square law."""
+    down the node's -Z), with its ``range`` (unaffected by the node's scale, as the extension
+    says)."""
     ref = doc.element("nodes", index, "scene").get("extensions", {}).get("KHR_lights_punctual")
     if ref is None:
         return []
@@ -1080,16 +1081,17 @@ def _node_light(doc: _Document, index: int, world: np.ndarray) -> list:
     position = tuple(world[:3, 3])
     direction = tuple(-world[:3, 2])
     kind = spec.get("type")
+    reach = spec.get("range")
     try:
         if kind == "point":
-            return [PointLight(position=position, color=color, intensity=intensity)]
+            return [PointLight(position=position, color=color, intensity=intensity, range=reach)]
         if kind == "directional":
             return [DirectionalLight(direction=direction, color=color, intensity=intensity)]
         if kind == "spot":
             cone = spec.get("spot", {})
             return [SpotLight(position=position, direction=direction, color=color, intensity=intensity,
                               inner_cone=cone.get("innerConeAngle", 0.0),
-                              outer_cone=cone.get("outerConeAngle", math.pi / 4.0))]
+                              outer_cone=cone.get("outerConeAngle", math.pi / 4.0), range=reach)]
     except (InputError, InputTypeError) as err:
         raise doc.error(f"light {light_index} (on node {index}): {err}") from None
     raise doc.error(f"light {light_index} has unknown type {kind!r} (expected point, spot or directional)")

@@ -16,14 +16,12 @@ from collections import deque
 _TRIANGLES = 4  # glTF's default primitive mode
 
 # Every glTF extension pbrwarp knows and what it does with it (docs/loading.md tables the same):
-# HONOURED, read as the extension specifies; PARTLY, read but for a property that is noted where a
-# file uses it (the "range" of KHR_lights_punctual: _note_light_ranges); NO_EFFECT, nothing a
-# still image shows (metadata, interaction); IGNORED, dropped with a warning saying what is
+# HONOURED, read as the extension specifies; NO_EFFECT, nothing a still image shows (metadata, interaction); IGNORED, dropped with a warning saying what is
 # rendered instead (the entry's text). A file may require (extensionsRequired) any extension but
 # an IGNORED one; an extension pbrwarp does not know is IGNORED.
-HONOURED, PARTLY, NO_EFFECT, IGNORED = "honoured", "partly honoured", "no visual effect", "ignored"
+HONOURED, NO_EFFECT, IGNORED = "honoured", "no visual effect", "ignored"
 _EXTENSIONS = {
-    "KHR_lights_punctual": (PARTLY, "light range is not applied"),
+    "KHR_lights_punctual": (HONOURED, ""),
     "KHR_materials_emissive_strength": (HONOURED, ""),
     "KHR_materials_ior": (HONOURED, ""),
     "KHR_materials_specular": (HONOURED, ""),
@@ -131,7 +129,6 @@ def _note_unhonoured(doc, nodes: list):
     _note_points_and_lines(doc, nodes)
     _note_alpha_blend(doc)
     _note_sampler_filters(doc)
-    _note_light_ranges(doc)
 
 
 def _note_extensions(doc):
@@ -228,12 +225,3 @@ def _note_sampler_filters(doc):
                           "filtered bilinearly (texels blend rather than show as sharp squares)",
                           "sampler", index, _ident(sampler, index))
 
-
-def _note_light_ranges(doc):
-    extensions = doc.json.get("extensions")
-    punctual = extensions.get("KHR_lights_punctual") if isinstance(extensions, dict) else None
-    lights = punctual.get("lights") if isinstance(punctual, dict) else None
-    for index, light in enumerate(lights if isinstance(lights, list) else []):
-        if isinstance(light, dict) and "range" in light:
-            doc.notes.add("light range", "range of {subjects} not applied: they light beyond it, falling off "
-                          "by the inverse square law alone", "light", index, _ident(light, index))

@@ -228,6 +228,10 @@ def _light_row(light) -> LightData:
     row.position = wp.vec3(*getattr(light, "position", (0.0, 0.0, 0.0)))
     row.direction = wp.vec3(*getattr(light, "direction", (0.0, -1.0, 0.0)))
     row.cone_scale, row.cone_offset = 0.0, 1.0
+    reach = getattr(light, "range", None)
+    # 1 / range^4 in float64, then float32: ranges below ~1e-10 would overflow it, and those
+    # lights reach nothing that float32 positions can tell apart from the light itself
+    row.inv_range4 = 0.0 if reach is None else float(min(reach ** -4.0, 3.0e38))
     if light.kind == SPOT:
         cos_outer = math.cos(light.outer_cone)
         # KHR_lights_punctual's recommended falloff

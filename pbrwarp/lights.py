@@ -34,6 +34,16 @@ def _intensity(light, value):
     return validate.non_negative(value, f"{type(light).__name__}.intensity")
 
 
+def _range(light, value):
+    """None (no cut-off) or a distance > 0 within float32's range."""
+    if value is None:
+        return None
+    x = validate.finite_scalar(value, f"{type(light).__name__}.range")
+    if not 0.0 < x < 3.0e38:
+        raise InputError(f"{type(light).__name__}.range must be a distance > 0 (or None for no cut-off), got {x}")
+    return x
+
+
 def _angle(name):
     return lambda light, value: validate.finite_scalar(value, f"{type(light).__name__}.{name}")
 
@@ -42,14 +52,18 @@ def _angle(name):
 class PointLight(validate.Checked):
     """Light radiating ``intensity`` candela (>= 0, default 1) of linear RGB ``color`` (>= 0,
     default white) equally in every direction from ``position`` (world units, within float32's
-    range; default the origin)."""
+    range; default the origin), falling off by the inverse square law. ``range`` (world units
+    > 0, default None: unlimited) is KHR_lights_punctual's cut-off: the falloff is then windowed
+    by clamp(1 - (distance / range)^4, 0, 1), as the extension recommends, so that the light
+    reaches exactly nothing beyond it."""
 
     position: tuple = (0.0, 0.0, 0.0)
     color: tuple = (1.0, 1.0, 1.0)
     intensity: float = 1.0
+    range: float | None = None
 
     kind = POINT
-    _checks = {"position": _position, "color": _color, "intensity": _intensity}
+    _checks = {"position": _position, "color": _color, "intensity": _intensity, "range": _range}
 
 
 @dataclass
@@ -74,6 +88,7 @@ class SpotLight(validate.Checked):
     ``inner_cone`` and ``outer_cone`` are half-angles in radians (defaults 0 and pi/4) with
     0 <= inner_cone <= outer_cone <= pi/2; between them the intensity falls off smoothly as glTF's
     KHR_lights_punctual specifies. (To widen a cone, set ``outer_cone`` before ``inner_cone``.)
+    ``range`` windows the falloff as for :class:`PointLight`.
     """
 
     position: tuple = (0.0, 0.0, 0.0)
@@ -82,10 +97,11 @@ class SpotLight(validate.Checked):
     intensity: float = 1.0
     inner_cone: float = 0.0
     outer_cone: float = math.pi / 4.0
+    range: float | None = None
 
     kind = SPOT
     _checks = {"position": _position, "direction": _direction, "color": _color, "intensity": _intensity,
-               "inner_cone": _angle("inner_cone"), "outer_cone": _angle("outer_cone")}
+               "inner_cone": _angle("inner_cone"), "outer_cone": _angle("outer_cone"), "range": _range}
 
     def _check_together(self):
         if not 0.0 <= self.inner_cone <= self.outer_cone <= math.pi / 2.0:

@@ -122,14 +122,13 @@ def test_ignored_material_extension_is_named_with_what_is_rendered_instead(tmp_p
     (lambda b: add_scene(b, default=False), r"only scene 'main' \(the first; the file names no default\) is loaded"),
     (lambda b: add_texture(b, sampler=0) or b.json.update(samplers=[{"magFilter": 9728}]),
      r"magFilter NEAREST of sampler 0 not honoured: their textures are filtered bilinearly"),
-    (lambda b: add_light(b, range=5.0), r"range of light 'lamp' not applied: they light beyond it"),
     (lambda b: b.json.update(cameras=[{"type": "orthographic", "name": "top"}]) or b.node(camera=0),
      r"camera 'top' of type 'orthographic' skipped: pbrwarp reads perspective cameras only"),
     (lambda b: add_texture(b) or b.json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"].update(texCoord=1),
      r"TEXCOORD_1 not read: texture slot material 0 \('mat'\) baseColorTexture sampled with TEXCOORD_0 instead"),
 ], ids=["avif", "meshopt", "variants", "node_visibility", "image_based_lights",
         "only_in_extensionsUsed", "unknown", "blend", "animation", "texcoord_morph_target",
-        "default_scene", "first_scene", "nearest", "light_range", "orthographic", "texcoord_1"])
+        "default_scene", "first_scene", "nearest", "orthographic", "texcoord_1"])
 def test_unhonoured_feature_is_named_in_one_warning(tmp_path, edit, expected):
     scene, messages = load_warned(quad_file(tmp_path, edit))
     assert len(messages) == 1 and re.search(expected, messages[0]), messages
