@@ -131,13 +131,15 @@ def _load(path: str, roots: tuple[str, ...], limits: LoadLimits) -> GltfContent:
     # Every size is checked from the JSON before anything is read or allocated: accessor counts
     # against the bytes behind them, the node graph's depth and the instances it places.
     doc.check_accessor_sizes()
-    nodes = _scene_nodes(doc)
-    _check_instancing(doc, nodes)
+    nodes, hidden = _scene_nodes(doc)
+    shown = [(node, world) for node, world in nodes if node not in hidden]
+    _check_instancing(doc, shown)
     _note_unhonoured(doc, nodes)
-    content = GltfContent(primitives=_Builder(doc, _read_primitives(doc)).primitives(nodes))
+    content = GltfContent(primitives=_Builder(doc, _read_primitives(doc)).primitives(shown, dict(nodes)))
     for node, world in nodes:
-        content.lights.extend(_node_light(doc, node, world))
-        content.cameras.extend(_node_camera(doc, node, world))
+        if node not in hidden:
+            content.lights.extend(_node_light(doc, node, world))
+        content.cameras.extend(_node_camera(doc, node, world))  # KHR_node_visibility leaves cameras
     content.load_warnings = doc.notes.messages()
     return content
 
@@ -751,12 +753,12 @@ class _Builder:
         self.materials = _Materials(doc)
         self._local: dict[tuple, Primitive] = {}  # (mesh, primitive), morph weights -> Primitive
 
-    def primitives(self, nodes: list) -> list[Primitive]:
+    def primitives(self, nodes: list, worlds: dict) -> list[Primitive]:
         """The Primitives the walked ``nodes`` (_scene_nodes) place, named after their node (and
-        ``/k`` for primitive k of a mesh with several)."""
+        ``/k`` for primitive k of a mesh with several); ``worlds`` holds every scene node's world
+        matrix, for skins' joints."""
         out = []
         names = _node_names(self.doc)
-        worlds = dict(nodes)
         for index, world in nodes:
             node = self.doc.json["nodes"][index]
             if "mesh" not in node:
@@ -925,8 +927,9 @@ def _boolean(value, what: str) -> bool:
 
 
 # ---------------------------------------------------------------------------- nodes, lights, cameras
-def _scene_nodes(doc: _Document) -> list[tuple[int, np.ndarray]]:
-    """(node index, world matrix) for every node of the default scene, parents first.
+def _scene_nodes(doc: _Document) -> tuple[list[tuple[int, np.ndarray]], set[int]]:
+    """((node index, world matrix) for every node of the default scene, parents first; the nodes
+    KHR_node_visibility hides: those whose own ``visible`` is false, and their descendants).
 
     The walk is iterative and visits each node once: glTF node hierarchies are disjoint trees
     (glTF 2.0, section 3.5.2: no cycles, at most one parent per node), so a node reached a second
@@ -940,9 +943,11 @@ def _scene_nodes(doc: _Document) -> list[tuple[int, np.ndarray]]:
     max_depth = doc.limits.max_node_depth
     parents: dict[int, int | None] = {}  # node -> parent (None for a root), for each node visited
     out = []
-    stack = [(root, None, np.eye(4), 1) for root in reversed(_index_list(doc, scene.get("nodes", []), "scene nodes"))]
+    hidden = set()
+    stack = [(root, None, np.eye(4), 1, False)
+             for root in reversed(_index_list(doc, scene.get("nodes", []), "scene nodes"))]
     while stack:
-        index, parent, parent_world, depth = stack.pop()
+        index, parent, parent_world, depth, parent_hidden = stack.pop()
         where = "the scene's root nodes" if parent is None else f"the children of node {parent}"
         node = doc.element("nodes", index, where)
         if index in parents:
@@ -955,9 +960,14 @@ def _scene_nodes(doc: _Document) -> list[tuple[int, np.ndarray]]:
             doc.element("meshes", node["mesh"], f"node {index}")
         world = parent_world @ _local_matrix(doc, node, index)
         out.append((index, world))
+        visible = node.get("extensions", {}).get("KHR_node_visibility", {}).get("visible", True)
+        if not isinstance(visible, bool):
+            raise doc.error(f"node {index}: KHR_node_visibility's visible must be true or false, got {visible!r}")
+        if parent_hidden or not visible:
+            hidden.add(index)
         children = _index_list(doc, node.get("children", []), f"node {index} children")
-        stack.extend((child, index, world, depth + 1) for child in reversed(children))
-    return out
+        stack.extend((child, index, world, depth + 1, index in hidden) for child in reversed(children))
+    return out, hidden
 
 
 def _node_names(doc: _Document) -> dict[int, str]:

@@ -46,7 +46,7 @@ _EXTENSIONS = {
     "KHR_mesh_quantization": (HONOURED, ""),
     "KHR_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
     "EXT_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
-    "KHR_node_visibility": (IGNORED, "nodes it hides are shown"),
+    "KHR_node_visibility": (HONOURED, ""),
     "KHR_texture_basisu": (HONOURED, "decoded by opengl-basisu, the ktx2 extra (pbrwarp/gltf_basisu.py)"),
     "EXT_texture_webp": (HONOURED, ""),
     "EXT_texture_avif": (IGNORED, "the textures' fallback PNG or JPEG images are used"),

@@ -198,7 +198,7 @@ def test_node_world_matrices_agree_with_trimesh():
     scene = trimesh.load(path, force="scene")
     doc = _Document(str(path))
     seen = 0
-    for index, world in _scene_nodes(doc):
+    for index, world in _scene_nodes(doc)[0]:
         name = doc.json["nodes"][index]["name"]
         np.testing.assert_allclose(world, scene.graph[name][0], atol=1e-6)
         seen += 1
@@ -368,6 +368,36 @@ def test_mesh_below_camera_node_is_placed(tmp_path):
     prims = {p.name: p for p in content.primitives}
     assert sorted(prims) == ["child", "placed"] and len(content.cameras) == 1
     np.testing.assert_allclose(prims["child"].positions - prims["placed"].positions, np.tile([0, 0, 4], (4, 1)))
+
+
+def test_node_visibility_hides_meshes_and_lights_below_a_hidden_node(tmp_path):
+    """KHR_node_visibility: a node with visible false hides its mesh and light and every
+    descendant's, even a descendant marked visible; cameras stay; a hidden joint still poses."""
+    b = Builder()
+    mesh = b.quad()
+    b.json["extensions"] = {"KHR_lights_punctual": {"lights": [{"type": "point"}]}}
+    b.json["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}]
+    hidden = {"KHR_node_visibility": {"visible": False}}
+    shown = {"KHR_node_visibility": {"visible": True}}
+    b.node(mesh=mesh, name="plain")
+    b.node(mesh=mesh, name="off", extensions=hidden, children=[2, 3, 4])
+    b.json["nodes"].append({"mesh": mesh, "name": "child", "extensions": shown})
+    b.json["nodes"].append({"name": "lamp", "extensions": {"KHR_lights_punctual": {"light": 0}}})
+    b.json["nodes"].append({"name": "eye", "camera": 0})
+    b.node(mesh=mesh, name="on", extensions=shown)
+    b.json["extensionsUsed"] = ["KHR_node_visibility", "KHR_lights_punctual"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        content = load_gltf(b.glb(tmp_path / "visibility.glb"))
+    assert [p.name for p in content.primitives] == ["plain", "on"]
+    assert content.lights == [] and len(content.cameras) == 1
+
+
+def test_node_visibility_must_be_boolean(tmp_path):
+    b = Builder()
+    b.node(mesh=b.quad(), extensions={"KHR_node_visibility": {"visible": "no"}})
+    with pytest.raises(AssetFormatError, match="visible must be true or false"):
+        load_gltf(b.glb(tmp_path / "bad.glb"))
 
 
 def test_primitives_are_named_after_their_nodes(tmp_path):

@@ -105,8 +105,6 @@ def test_ignored_material_extension_is_named_with_what_is_rendered_instead(tmp_p
         extensions={"KHR_materials_variants": {"mappings": [{"material": 0, "variants": [0]}]}})
      or b.json.update(extensions={"KHR_materials_variants": {"variants": [{"name": "red"}]}}),
      r"KHR_materials_variants on mesh 'Quad' ignored: each primitive shows its default material"),
-    (lambda b: b.json["nodes"][0].update(extensions={"KHR_node_visibility": {"visible": False}}),
-     r"KHR_node_visibility on node 'quad' ignored: nodes it hides are shown"),
     (lambda b: b.json.update(extensions={"EXT_lights_image_based": {"lights": []}}),
      r"EXT_lights_image_based ignored: no environment lighting from the file"),
     (lambda b: b.json.update(extensionsUsed=["KHR_animation_pointer"]), r"KHR_animation_pointer ignored"),
@@ -126,7 +124,7 @@ def test_ignored_material_extension_is_named_with_what_is_rendered_instead(tmp_p
      r"camera 'top' of type 'orthographic' skipped: pbrwarp reads perspective cameras only"),
     (lambda b: add_texture(b) or b.json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"].update(texCoord=1),
      r"TEXCOORD_1 not read: texture slot material 0 \('mat'\) baseColorTexture sampled with TEXCOORD_0 instead"),
-], ids=["avif", "meshopt", "variants", "node_visibility", "image_based_lights",
+], ids=["avif", "meshopt", "variants", "image_based_lights",
         "only_in_extensionsUsed", "unknown", "blend", "animation", "texcoord_morph_target",
         "default_scene", "first_scene", "nearest", "orthographic", "texcoord_1"])
 def test_unhonoured_feature_is_named_in_one_warning(tmp_path, edit, expected):
