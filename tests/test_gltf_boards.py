@@ -8,7 +8,7 @@ import pytest
 
 import pbrwarp as pw
 
-from assets import board
+from assets import BOARDS, board
 
 def board_json(name):
     """The JSON chunk of the test board ``name``'s .glb."""
@@ -56,3 +56,66 @@ def test_specular_board_spheres_reflect_their_f0_head_on(node, f0):
     camera = pw.Camera.look_at(eye=tuple(centre + (0.0, 0.0, 1.0)), target=tuple(centre), fov_y=0.5)
     frame = pw.render(scene, camera, width=4, height=4, shadows=False, progress=False)
     np.testing.assert_allclose(frame.rgb[1:3, 1:3], np.broadcast_to(f0, (2, 2, 3)), rtol=0.02, atol=2e-4)
+
+
+def gltf_floats(name, accessor):
+    """Accessor ``accessor`` of a board's .gltf read as float32 rows, by NumPy from the JSON's
+    bufferView and the .bin file it names (tightly packed, no stride: these boards' layout)."""
+    path = board(name)
+    spec = json.loads(path.read_text())
+    acc = spec["accessors"][accessor]
+    view = spec["bufferViews"][acc["bufferView"]]
+    data = (path.parent / spec["buffers"][view["buffer"]]["uri"]).read_bytes()
+    width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}[acc["type"]]
+    start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+    return spec, np.frombuffer(data, np.float32, acc["count"] * width, start).reshape(acc["count"], width)
+
+
+def test_sparse_accessor_board_raises_three_vertices_of_the_top_row():
+    """SimpleSparseAccessor: a strip of 14 vertices, (x, 0) and (x, 1) for x = 0..6, whose
+    POSITION accessor's sparse part substitutes 3 of them (its README's figure): the loaded mesh
+    holds the base grid with exactly those three replaced, raised above the top row."""
+    spec, base = gltf_floats("SimpleSparseAccessor", 1)
+    sparse = spec["accessors"][1]["sparse"]
+    data = (board("SimpleSparseAccessor").parent / spec["buffers"][0]["uri"]).read_bytes()
+    views = spec["bufferViews"]
+    indices = np.frombuffer(data, np.uint16, sparse["count"], views[sparse["indices"]["bufferView"]]["byteOffset"])
+    values = np.frombuffer(data, np.float32, sparse["count"] * 3,
+                           views[sparse["values"]["bufferView"]]["byteOffset"]).reshape(-1, 3)
+    expected = base.astype(np.float64).copy()
+    expected[indices] = values
+    (prim,) = pw.Scene.load(board("SimpleSparseAccessor")).primitives
+    np.testing.assert_array_equal(prim.positions, expected)
+    changed = np.flatnonzero(np.any(prim.positions != base, axis=1))
+    assert changed.tolist() == sorted(indices.tolist()) and len(changed) == 3
+    assert np.all(prim.positions[changed, 1] > 1.0)
+
+
+def test_simple_skin_board_at_its_stored_pose_is_its_bind_pose():
+    """SimpleSkin: a strip of 10 vertices skinned to two joints; the animation bends it, but the
+    nodes store the bind pose (joint 1 at (0, 1, 0), its inverse bind matrix the translation by
+    (0, -1, 0)), so every joint matrix, world times inverse bind, is the identity and the static
+    pose viewers show without playing the animation is the mesh as stored."""
+    spec, positions = gltf_floats("SimpleSkin", 1)
+    _, inverse_bind = gltf_floats("SimpleSkin", spec["skins"][0]["inverseBindMatrices"])
+    worlds = [np.eye(4), np.eye(4)]
+    worlds[1][:3, 3] = spec["nodes"][2]["translation"]
+    for world, ibm in zip(worlds, inverse_bind):
+        np.testing.assert_allclose(world @ ibm.reshape(4, 4).T, np.eye(4), atol=1e-6)
+    with pytest.warns(UserWarning, match="animation"):
+        (prim,) = pw.Scene.load(board("SimpleSkin")).primitives
+    np.testing.assert_allclose(prim.positions, positions, atol=1e-6)
+
+
+@pytest.mark.skipif("RecursiveSkeletons" not in BOARDS, reason="needs PBRWARP_TEST_ASSETS (shared assets)")
+def test_recursive_skeletons_board_places_one_mesh_by_84_skins():
+    """RecursiveSkeletons: one mesh bound by 84 skins to four skeletons (its README): 84 posed
+    copies of the mesh's 40 vertices, no two the same, every vertex finite; only the animation
+    is warned about."""
+    with pytest.warns(UserWarning, match="animation") as caught:
+        scene = pw.Scene.load(board("RecursiveSkeletons"))
+    assert len(caught) == 1
+    prims = scene.primitives
+    assert len(prims) == 84 and {len(p.positions) for p in prims} == {40}
+    assert all(np.isfinite(p.positions).all() for p in prims)
+    assert len({p.positions.round(5).tobytes() for p in prims}) == 84
