@@ -130,7 +130,8 @@ def main(argv=None):
     ap.add_argument("--height", type=int, default=192, help="image height in pixels")
     ap.add_argument("--spp", type=int, default=4)
     ap.add_argument("--env", default="hdr/studio_small_03_1k.hdr", help="environment, relative to the shared assets")
-    ap.add_argument("--only", nargs="*", default=[], help="model folder names (default: all)")
+    ap.add_argument("--only", nargs="*", default=[],
+                    help="model folder names (default: all); writes their images only, not the page")
     args = ap.parse_args(argv)
     environment = pw.Environment.load(ASSETS / args.env)
     out_dir = DOCS / "gallery"
@@ -147,6 +148,10 @@ def main(argv=None):
         side_by_side(image, ref, args.height).save(out_dir / f"{folder.name}.jpg", quality=82, optimize=True)
         rows.append((group, folder, path, ref is not None, [short(m, folder) for m in messages], loaded, rendered))
         print(f"{folder.name}: {len(messages)} message(s), {loaded:.2f} s load, {rendered:.2f} s render", file=sys.stderr)
+    if args.only:  # a partial run must not replace the page of every model
+        print("--only: images written; docs/gallery.md left as it was (run without --only to remake it)",
+              file=sys.stderr)
+        return
     (DOCS / "gallery.md").write_text(markdown(rows, command_line(ap, args), args))
 
 
