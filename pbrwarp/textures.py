@@ -263,3 +263,64 @@ class Texture(validate.Checked):
         sx, sy = self.scale
         tx, ty = self.offset
         return np.array([[c * sx, s * sy, tx], [-s * sx, c * sy, ty]], dtype=np.float32)
+
+
+def linear_to_srgb(c: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`srgb_to_linear` (IEC 61966-2-1's OETF), per channel, for values in [0, 1]."""
+    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
+    return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1.0 / 2.4) - 0.055)
+
+
+def _box_taps(size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Source indices (m, 3) and weights (m, 3) of the box filter that shrinks a side of ``size``
+    texels to m = max(1, size // 2): output texel i averages the piecewise-constant source over
+    [i size / m, (i + 1) size / m], so an even side averages pairs and an odd side's boxes are
+    2 + 1/m texels wide, weighting the texels they cover in part by the covered fraction. Each
+    level's mean therefore equals its parent's exactly (up to rounding)."""
+    m = max(1, size // 2)
+    width = size / m
+    start = np.arange(m, dtype=np.float64)[:, None] * width
+    first = np.floor(start).astype(np.int64)
+    taps = first + np.arange(3)[None, :]
+    overlap = np.minimum(taps + 1, start + width) - np.maximum(taps, start)
+    weights = np.clip(overlap, 0.0, None) / width
+    return np.minimum(taps, size - 1), weights
+
+
+def box_downsample(linear: np.ndarray) -> np.ndarray:
+    """The next mip level of linear (H, W, C) texels (float64), each side halved (rounded down,
+    at least 1) by the area-weighted box filter of :func:`_box_taps`."""
+    img = np.asarray(linear, dtype=np.float64)
+    rows, row_w = _box_taps(img.shape[0])
+    img = np.einsum("mk,mkwc->mwc", row_w, img[rows])
+    cols, col_w = _box_taps(img.shape[1])
+    return np.einsum("nk,hnkc->hnc", col_w, img[:, cols])
+
+
+def mip_chain(linear: np.ndarray) -> list[np.ndarray]:
+    """Linear (H, W, 4) texels and their mip levels down to 1 x 1 texel, float64, level 0
+    first (1 + floor(log2(max(H, W))) levels). The levels past 0 add at most a third of level
+    0's texels (exactly a third for square power-of-two sides)."""
+    levels = [np.asarray(linear, dtype=np.float64)]
+    while max(levels[-1].shape[:2]) > 1:
+        levels.append(box_downsample(levels[-1]))
+    return levels
+
+
+def encode_unorm8(linear: np.ndarray, srgb: bool) -> np.ndarray:
+    """Linear RGBA values in [0, 1] as 8-bit texels (rounded to nearest): colour channels
+    sRGB-encoded when ``srgb`` so that UNORM8_DECODE gives them back, alpha never."""
+    out = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0).copy()
+    if srgb:
+        out[..., :3] = linear_to_srgb(out[..., :3])
+    return np.rint(out * 255.0).astype(np.uint8)
+
+
+def mip_levels(texture: "Texture", srgb: bool) -> list[np.ndarray]:
+    """``texture``'s mip levels past level 0, in its stored form: 8-bit textures stay 8-bit
+    (averaged in linear space, then re-encoded as they were, so the kernels' decode stays
+    correct), others float32 linear."""
+    chain = mip_chain(texture.texels(srgb))[1:]
+    if texture.rgba8 is not None:
+        return [encode_unorm8(level, srgb) for level in chain]
+    return [level.astype(np.float32) for level in chain]
