@@ -31,8 +31,13 @@ class TextureData:
     width: int
     height: int
     # mip levels stored (0 or 1: level 0 only). Level l is max(1, width >> l) x max(1, height >> l)
-    # texels and follows level l - 1 directly (mip_level_offset); pbrwarp.textures.mip_chain.
+    # texels (pbrwarp.textures.mip_chain); level 1 starts at mip_offset, in the same array, and
+    # each further level follows the one before directly (mip_level_offset). Level 0 stands
+    # apart so that an 8-bit image read both as colour and as data is stored once.
     levels: int
+    mip_offset: int
+    # the uv set the texture is sampled with: 0 (TEXCOORD_0, SceneData.uvs) or 1 (SceneData.uvs1)
+    uv_set: int
     wrap_s: int
     wrap_t: int
     texel_format: int
@@ -164,9 +169,12 @@ def mip_level_side(side: int, level: int) -> int:
 
 @wp.func
 def mip_level_offset(tex: TextureData, level: int) -> int:
-    """First texel of mip level ``level`` of ``tex``: the levels are stored one after the other."""
-    start = tex.offset
-    for l in range(level):
+    """First texel of mip level ``level`` of ``tex``: level 0 at offset, the others one after the
+    other from mip_offset."""
+    if level == 0:
+        return tex.offset
+    start = tex.mip_offset
+    for l in range(1, level):
         start += mip_level_side(tex.width, l) * mip_level_side(tex.height, l)
     return start
 

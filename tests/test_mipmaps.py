@@ -98,6 +98,7 @@ def mipped_row(chain, uv_matrix=((1, 0, 0), (0, 1, 0))):
     row.wrap_s = row.wrap_t = WRAP_REPEAT
     row.texel_format = TEXELS_FLOAT
     row.levels = len(chain)
+    row.mip_offset = row.height * row.width  # level 1 right after level 0
     row.uv_row0, row.uv_row1 = wp.vec3(*uv_matrix[0]), wp.vec3(*uv_matrix[1])
     return row, texel_store([level.reshape(-1, 4).astype(np.float32) for level in chain])
 
