@@ -60,6 +60,10 @@ def scenes():
     mixed = sphere_scene(pw.Material(metallic=0.5, roughness=0.3), [POINT, DIRECTIONAL, SPOT])
     mixed.add_mesh(box((6, 0.2, 6), (0, -1.2, 0)), pw.Material(double_sided=False, alpha_mode="MASK", alpha_cutoff=0.3,
                                                                  base_color=(0.5, 0.5, 0.5, 0.6)))
+    two_sets = sphere_scene(textured_material(), [POINT], uv_sphere())
+    two_sets.primitives[0].uvs1 = two_sets.primitives[0].uvs[:, ::-1] * 3.0  # TEXCOORD_1
+    two_sets.primitives[0].material.emissive_texture.texcoord = 1
+    two_sets.primitives[0].material.normal_texture.texcoord = 1
     return [
         ("bare convex", sphere_scene(pw.Material(), [DIRECTIONAL]),
          {"shadows", "base_color_texture", "normal_mapping", "emission", "point_lights", "spot_lights", "pass_through",
@@ -72,6 +76,7 @@ def scenes():
         ("specular textures", sphere_scene(specular_textured_material(), [POINT], uv_sphere()),
          {"base_color_texture", "metallic_roughness_texture", "emissive_texture", "normal_mapping"}),
         ("shadows", floor_and_sphere, {"directional_lights", "normal_mapping"}),
+        ("second uv set", two_sets, {"spot_lights", "specular_texture", "specular_color_texture"}),
         ("everything", mixed, set()),
     ]
 
@@ -82,6 +87,7 @@ def test_specialized_image_equals_the_all_effects_image(name, scene, absent, spp
     features = scene_features(scene, upload(scene), shadows=True, spp=spp)
     dropped = {k for k, v in features.__dict__.items() if not v}
     assert absent <= dropped, (name, dropped)
+    assert features.second_uv_set == (name == "second uv set")
     cam = pw.Camera.look_at(eye=(0.5, 1.5, 4.0), target=(0, -0.3, 0))
     # primary visibility pinned to ray casting: the raster path's agreement is tests/test_visibility_path.py's
     special = render_checked(scene, cam, size=(64, 48), spp=spp, visibility="raycast")

@@ -24,18 +24,27 @@ def random_texture(n, seed=0):
 @pytest.mark.parametrize("visibility", ["raycast", "raster"])
 @pytest.mark.parametrize("texels_per_pixel", [0.5, 2 ** 0.5, 2.0, 2 ** 2.3])
 def test_head_on_plane_reads_the_level_of_its_footprint(texels_per_pixel, visibility):
+    head_on_plane_check(texels_per_pixel, visibility)
+
+
+def head_on_plane_check(texels_per_pixel, visibility, uv_set=0):
     """A square of side L facing a camera at distance D: a pixel spans s = 2 D tan(fov/2) / H on
     it, so du/dx = s / L exactly and the level is log2(N s / L) for an N-texel texture (0 when
     magnified). Every pixel equals the trilinear blend of the two levels of the (tested) mip
-    chain at its centre's uv, computed in float64."""
+    chain at its centre's uv, computed in float64. With ``uv_set`` 1 the texture reads uvs1,
+    and uvs span a thousandth of it (their footprint would be level 0)."""
     n, side, height, width = 256, 2.0, 24, 32
     texture = random_texture(n)
+    texture.texcoord = uv_set
     pixel = side / n * texels_per_pixel  # world units a pixel spans on the plane
     half_height = pixel * height / 2
     distance = 3.0
     fov = 2 * np.degrees(np.arctan(half_height / distance))
+    prim = quad(size=side, material=unlit(texture))
+    if uv_set == 1:
+        prim.uvs1, prim.uvs = prim.uvs, prim.uvs * 1e-3 + 0.5
     scene = pw.Scene()
-    scene.add_mesh(quad(size=side, material=unlit(texture)))
+    scene.add_mesh(prim)
     cam = pw.Camera.look_at(eye=(0.1, -0.05, distance), target=(0.1, -0.05, 0), fov_y=fov)
     frame = render_checked(scene, cam, size=(width, height), visibility=visibility)
     # pixel centres on the plane, and their uv (u = (x + 1) / 2, v = (1 - y) / 2 on scenes.quad)
