@@ -27,12 +27,20 @@ def test_head_on_plane_reads_the_level_of_its_footprint(texels_per_pixel, visibi
     head_on_plane_check(texels_per_pixel, visibility)
 
 
-def head_on_plane_check(texels_per_pixel, visibility, uv_set=0):
+@pytest.mark.parametrize("visibility", ["raycast", "raster"])
+def test_footprint_of_a_surface_seen_through_a_culled_one(visibility):
+    """The same plane behind a single-sided square turned away from the camera (culled, passed
+    through): the footprint is that of the plane, not of the square's distance."""
+    head_on_plane_check(2 ** 1.6, visibility, blocker=True)
+
+
+def head_on_plane_check(texels_per_pixel, visibility, uv_set=0, blocker=False):
     """A square of side L facing a camera at distance D: a pixel spans s = 2 D tan(fov/2) / H on
     it, so du/dx = s / L exactly and the level is log2(N s / L) for an N-texel texture (0 when
     magnified). Every pixel equals the trilinear blend of the two levels of the (tested) mip
     chain at its centre's uv, computed in float64. With ``uv_set`` 1 the texture reads uvs1,
-    and uvs span a thousandth of it (their footprint would be level 0)."""
+    and uvs span a thousandth of it (their footprint would be level 0); with ``blocker`` a
+    single-sided square facing away from the camera, halfway to it, covers the view."""
     n, side, height, width = 256, 2.0, 24, 32
     texture = random_texture(n)
     texture.texcoord = uv_set
@@ -45,6 +53,10 @@ def head_on_plane_check(texels_per_pixel, visibility, uv_set=0):
         prim.uvs1, prim.uvs = prim.uvs, prim.uvs * 1e-3 + 0.5
     scene = pw.Scene()
     scene.add_mesh(prim)
+    if blocker:
+        away = quad(size=4 * side, z=distance / 2, material=pw.Material(double_sided=False))
+        away.faces = away.faces[:, ::-1]
+        scene.add_mesh(away)
     cam = pw.Camera.look_at(eye=(0.1, -0.05, distance), target=(0.1, -0.05, 0), fov_y=fov)
     frame = render_checked(scene, cam, size=(width, height), visibility=visibility)
     # pixel centres on the plane, and their uv (u = (x + 1) / 2, v = (1 - y) / 2 on scenes.quad)
