@@ -8,6 +8,9 @@ against a reference for error and timed, side by side.
   the same 4 stratified samples per pixel, so it is the BRDF's error alone.
 - Sampling rows render the default BRDF at 1..64 spp against the same BRDF at 256 spp.
 - The shadow row turns shadow rays off, against shadow rays on.
+- Texture filter rows render a brick floor seen at a grazing angle (textures many times finer
+  than the pixels far away) with each texture filter at 1 and 4 spp, against bilinear lookups
+  at 256 spp; the notes give the one-off cost of building the floor's mip chains.
 Error: relative RMSE of linear radiance over the covered pixels (per pixel, relative to
 reference^2 + 0.01, as Rousselle et al. 2011; radiance clipped at 64), mean over the scenes,
 and mean
@@ -188,6 +191,7 @@ def main(argv=None):
     rows.append({"family": "shadows", "rung": "shadows=rays (ray traced)", "rel_rmse": 0.0, "per_scene": [0.0] * len(scenes),
                  "flip": 0.0, "ms": frame_ms(), "ns_per_eval": None})
     ibl_rows(add, render, args.repeats)
+    mip_ms = texture_filter_rows(add, render, args.repeats)
     print(f"done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
 
     names = [n for n, _, _ in scenes]
@@ -205,8 +209,10 @@ def main(argv=None):
               "ibl rows (one scene of their own: a sphere grid on a floor under an HDR, no punctual lights; "
               "per-scene columns empty, ms for its one frame): against Monte Carlo with 1024 shadowed directions per sample at 4 spp; "
               "shadows rows: against ray-traced shadows; shadow-map times include rasterizing the maps except "
-              "where they are reused (a new camera, the same lights and geometry). Times: spp 1, medians, summed over "
-              "the four scenes.",
+              "where they are reused (a new camera, the same lights and geometry); texture filter rows (a brick floor "
+              "of their own, per-scene columns empty, ms for its one frame at the row's spp): against bilinear "
+              f"lookups at 256 spp; its mip chains take {mip_ms:.0f} ms to build, once per texture. Times: spp 1 "
+              "unless a row says otherwise, medians, summed over the four scenes.",
               "", "![error vs time](accuracy.png)", "",
               "Differences to the reference (tone-mapped, amplified 4x), one row per rung:", "",
               "![differences](accuracy_differences.png)"]
@@ -252,6 +258,38 @@ def ibl_rows(add, render, repeats):
             1e3 * median_time(lambda: render(scene, cam, ibl=ibl), repeats))
 
 
+def texture_floor():
+    """A brick floor (meshes.brick_material: 512² base colour and normal map) 60 units wide, the
+    bricks repeated 30 times, seen from 1.5 units above it, lit by one directional light."""
+    scene = pw.Scene()
+    scene.add_mesh(meshes.normal_mapped_tile(size=60.0, repeats=30.0), transform=_floor_transform())
+    scene.add_light(pw.DirectionalLight(direction=(-0.4, -1.0, -0.3), intensity=3.0))
+    return scene, pw.Camera.look_at(eye=(0.0, 1.5, 12.0), target=(0.0, 0.0, -10.0), fov_y=50.0)
+
+
+def _floor_transform():
+    """The tile's z = 0 plane turned to y = 0, facing up."""
+    return trimesh.transformations.rotation_matrix(-np.pi / 2, (1, 0, 0))
+
+
+def texture_filter_rows(add, render, repeats) -> float:
+    """Texture filter rungs on the brick floor against bilinear lookups at 256 spp; returns the
+    milliseconds building its mip chains takes (median)."""
+    from pbrwarp import gpu_scene
+
+    scene, cam = texture_floor()
+    reference = render(scene, cam, spp=256, texture_filter="bilinear")
+    covered = reference.alpha > 0
+    for texture_filter in ("trilinear", "bilinear"):
+        for spp in (1, 4):
+            frame = render(scene, cam, spp=spp, texture_filter=texture_filter)
+            add("texture filter", f"{texture_filter}, spp={spp}" + (" (default)" if texture_filter == "trilinear" and spp == 1 else ""),
+                [rel_rmse(frame.rgb, reference.rgb, covered)], [flip(frame, reference)],
+                1e3 * median_time(lambda: render(scene, cam, spp=spp, texture_filter=texture_filter), repeats))
+    prims = scene.primitives
+    return 1e3 * median_time(lambda: gpu_scene._build_texels(prims, None), repeats)
+
+
 def difference_image(frame, reference):
     """|tone-mapped test - tone-mapped reference|, amplified 4x, as uint8 RGB."""
     d = np.abs(frame.to_srgb8().astype(np.int16) - reference.to_srgb8().astype(np.int16)) * 4
@@ -282,6 +320,10 @@ def replot():
     plot(json.loads((RESULTS / "accuracy.json").read_text())["rows"], RESULTS / "accuracy.png")
 
 
+# Row families measured on a scene of their own, plotted apart from the four report scenes'.
+ONE_SCENE_FAMILIES = ("ibl", "texture filter")
+
+
 def plot(rows, path):
     """Error vs cost, log axes, Pareto fronts dashed: BRDF rungs against ns per evaluation (their
     frame times differ by less than the timing noise), sampling and shadows against ms per frame."""
@@ -295,15 +337,18 @@ def plot(rows, path):
         return
     colours = {"preset": "black", "diffuse": "tab:green", "distribution": "tab:purple", "geometry": "tab:blue",
                "fresnel": "tab:orange", "energy": "tab:olive", "coupling": "tab:cyan", "model": "tab:pink",
-               "metallic_mix": "gold", "sampling": "tab:red", "shadows": "tab:brown", "ibl": "tab:gray"}
+               "metallic_mix": "gold", "sampling": "tab:red", "shadows": "tab:brown", "ibl": "tab:gray",
+               "texture filter": "teal"}
     floor = 1e-4  # the reference itself (error 0) sits on the floor of the log axis
-    fig, axes = plt.subplots(1, 3, figsize=(17, 5), dpi=110)
+    fig, axes = plt.subplots(1, 4, figsize=(22, 5), dpi=110)
     panels = ((axes[0], [r for r in rows if r["ns_per_eval"] is not None], "ns_per_eval",
                "BRDF cost (ns per evaluation, one thread)", "BRDF rungs and presets (4 spp)"),
-              (axes[1], [r for r in rows if r["ns_per_eval"] is None and r["family"] != "ibl"], "ms",
+              (axes[1], [r for r in rows if r["ns_per_eval"] is None and r["family"] not in ONE_SCENE_FAMILIES], "ms",
                "time for the four report frames (ms, 2 cores)", "sample counts and shadows"),
               (axes[2], [r for r in rows if r["family"] == "ibl"], "ms",
-               "time for the HDR-lit frame (ms, 2 cores)", "environment light (vs 1024 shadowed directions)"))
+               "time for the HDR-lit frame (ms, 2 cores)", "environment light (vs 1024 shadowed directions)"),
+              (axes[3], [r for r in rows if r["family"] == "texture filter"], "ms",
+               "time for the brick floor frame (ms, 2 cores)", "texture filters (vs bilinear at 256 spp)"))
     for ax, subset, key, xlabel, title in panels:
         points = [(max(r[key], 0.1), max(r["rel_rmse"], floor), r) for r in subset]
         for x, err, r in points:

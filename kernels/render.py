@@ -23,7 +23,8 @@ from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
 from .work_queue import read_counter, take_next_item_from
-from .surface import MAX_PASS_THROUGH, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
+from .surface import MAX_PASS_THROUGH, SurfaceHit, interpolate, surface_hit, surface_tests
+from .texture_coords import SurfaceUV, texture_lookups
 from .visibility_buffer import visible_triangle
 
 wp.set_module_options({"enable_backward": False})
@@ -56,7 +57,11 @@ def render_kernel(features):
     lit = f.point_lights or f.directional_lights or f.spot_lights
     ibl = f.environment
     shaded = lit or bool(ibl)
-    hit_uv, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion)
+    hit_uv, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion,
+                                                    f.second_uv_set)
+    # the pixel footprint (ray differentials) is computed only for trilinear filtering
+    footprint = textured and f.texture_filter == "trilinear"
+    hit_texcoords, texture = texture_lookups(textured, footprint, f.second_uv_set)
 
     @wp.func
     def is_culled(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
@@ -70,19 +75,19 @@ def render_kernel(features):
                               f.brdf.metallic_mix == "gltf", f.anisotropy, f.iridescence)
 
     @wp.func
-    def base_color_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
+    def base_color_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV) -> wp.vec3:
         """The material's base colour at the hit: its factor times vertex colour and texture."""
         base = wp.vec3(mat.base_color[0], mat.base_color[1], mat.base_color[2])
         if wp.static(f.vertex_colors):
             vertex_color = interpolate(scene.colors, h)
             base = wp.cw_mul(base, wp.vec3(vertex_color[0], vertex_color[1], vertex_color[2]))
         if wp.static(f.base_color_texture):
-            bc = texture_or_one(scene, mat.base_color_texture, uv)
+            bc = texture(scene, mat.base_color_texture, uv)
             base = wp.cw_mul(base, wp.vec3(bc[0], bc[1], bc[2]))
         return base
 
     @wp.func
-    def anisotropy_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2, n: wp.vec3):
+    def anisotropy_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV, n: wp.vec3):
         """(the unit anisotropy direction, the strength) of KHR_materials_anisotropy at the hit,
         with ``n`` the shading normal; strength 0 where there is no tangent frame."""
         strength = mat.anisotropy_strength
@@ -92,7 +97,7 @@ def render_kernel(features):
         direction = rotation
         if wp.static(f.anisotropy_texture):
             if mat.anisotropy_texture != NO_TEXTURE:
-                texel = texture_or_one(scene, mat.anisotropy_texture, uv)
+                texel = texture(scene, mat.anisotropy_texture, uv)
                 d = wp.vec2(2.0 * texel[0] - 1.0, 2.0 * texel[1] - 1.0)
                 length = wp.length(d)
                 if length > 0.0:
@@ -110,21 +115,21 @@ def render_kernel(features):
         return t, strength
 
     @wp.func
-    def thin_film_at(scene: SceneData, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
+    def thin_film_at(scene: SceneData, mat: MaterialData, uv: SurfaceUV) -> wp.vec3:
         """(strength, IOR, thickness in nm) of KHR_materials_iridescence's film at the hit."""
         strength = mat.iridescence
         thickness = mat.iridescence_thickness[1]
         if wp.static(f.iridescence_texture):
             if mat.iridescence_texture != NO_TEXTURE:
-                strength = strength * texture_or_one(scene, mat.iridescence_texture, uv)[0]
+                strength = strength * texture(scene, mat.iridescence_texture, uv)[0]
             if mat.iridescence_thickness_texture != NO_TEXTURE:
-                g = texture_or_one(scene, mat.iridescence_thickness_texture, uv)[1]
+                g = texture(scene, mat.iridescence_thickness_texture, uv)[1]
                 thickness = wp.lerp(mat.iridescence_thickness[0], mat.iridescence_thickness[1], g)
         return wp.vec3(strength, mat.iridescence_ior, thickness)
 
     @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
-              dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3,
+              dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit, mat: MaterialData, uv: SurfaceUV, view: wp.vec3,
               n: wp.vec3, seed: int, stream: int, cache: ShadowCache, scale: wp.vec3, scale_material: int):
         """(radiance leaving the hit towards the view, the shadow cache, the albedo coupling's
         normalization ``scale`` (diffuse_share_scale) and the material it was computed for,
@@ -137,7 +142,7 @@ def render_kernel(features):
         if wp.static(f.emission):
             radiance = mat.emissive
             if wp.static(f.emissive_texture):
-                em = texture_or_one(scene, mat.emissive_texture, uv)
+                em = texture(scene, mat.emissive_texture, uv)
                 radiance = wp.cw_mul(radiance, wp.vec3(em[0], em[1], em[2]))
         if wp.static(shaded):
             base = base_color_at(scene, h, mat, uv)
@@ -146,13 +151,13 @@ def render_kernel(features):
             specular = mat.specular
             f0_dielectric = mat.f0_dielectric
             if wp.static(f.metallic_roughness_texture):
-                mr = texture_or_one(scene, mat.metallic_roughness_texture, uv)
+                mr = texture(scene, mat.metallic_roughness_texture, uv)
                 roughness = roughness * mr[1]
                 metallic = metallic * mr[2]
             if wp.static(f.specular_texture):
-                specular = specular * texture_or_one(scene, mat.specular_texture, uv)[3]
+                specular = specular * texture(scene, mat.specular_texture, uv)[3]
             if wp.static(f.specular_color_texture):
-                sc = texture_or_one(scene, mat.specular_color_texture, uv)
+                sc = texture(scene, mat.specular_color_texture, uv)
                 f0_dielectric = wp.cw_mul(f0_dielectric, wp.vec3(sc[0], sc[1], sc[2]))
             aniso_t = wp.vec3(0.0)
             anisotropy = float(0.0)
@@ -203,7 +208,7 @@ def render_kernel(features):
                                            stream, aniso_t, anisotropy, thin_film)
                 if wp.static(f.occlusion_texture):
                     if mat.occlusion_texture != NO_TEXTURE:
-                        occlusion = texture_or_one(scene, mat.occlusion_texture, uv)[0]
+                        occlusion = texture(scene, mat.occlusion_texture, uv)[0]
                         from_environment = from_environment * (1.0 + mat.occlusion_strength * (occlusion - 1.0))
                 radiance = radiance + from_environment
         if wp.static(not scale_per_material):
@@ -248,7 +253,7 @@ def render_kernel(features):
         return verdict == OCCLUDED, blocker
 
     @wp.func
-    def shading_normal(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> wp.vec3:
+    def shading_normal(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV) -> wp.vec3:
         """Interpolated (and normal-mapped) normal, turned to the side the ray came from."""
         front_ng = h.ng
         if h.back_face == 1:
@@ -256,7 +261,7 @@ def render_kernel(features):
         n = safe_normalize(interpolate(scene.normals, h), front_ng)
         if wp.static(f.normal_mapping):
             if mat.normal_texture != NO_TEXTURE:
-                texel = texture_or_one(scene, mat.normal_texture, uv)
+                texel = texture(scene, mat.normal_texture, uv)
                 n = perturb_normal(n, interpolate(scene.tangents, h), texel, mat.normal_scale)
         if h.back_face == 1:
             n = -n
@@ -309,6 +314,7 @@ def render_kernel(features):
         cache = ShadowCache(-1)
         scale = wp.vec3(1.0)
         scale_material = int(-1)
+        step = 1.0 / wp.sqrt(float(spp))  # the side of a sample's stratum, in pixels
         for px in range(cam.width):
             if read_counter(rows, STOP) != 0:
                 return
@@ -334,6 +340,13 @@ def render_kernel(features):
                 if wp.static(f.supersampling):
                     offset = multi_jittered_sample(s, grid_m, grid_n, pixel_seed)
                 d = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1])
+                dir_dx = d
+                dir_dy = d
+                if wp.static(footprint):
+                    # the rays one step right and one step down: a pixel apart, or with
+                    # supersampling a stratum apart, the footprint of one of spp samples
+                    dir_dx = camera_ray_direction(cam, float(px) + offset[0] + step, float(py) + offset[1])
+                    dir_dy = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1] + step)
                 origin = cam.eye
                 hits_before = hits
                 face, u, v = primary_hit(scene, seen, origin, d)
@@ -342,15 +355,16 @@ def render_kernel(features):
                         break
                     h = surface_hit(scene, face, u, v, d)
                     mat = scene.materials[h.material]
-                    uv = hit_uv(scene, h)
+                    uv0 = hit_uv(scene, h)
                     if wp.static(f.pass_through):
-                        if is_culled(scene, h, mat, uv):
+                        if is_culled(scene, h, mat, uv0):
                             origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
                             q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
                             face = wp.where(q.result, q.face, -1)
                             u = q.u
                             v = q.v
                             continue
+                    uv = hit_texcoords(scene, h, uv0, cam.eye, dir_dx, dir_dy)
                     n = wp.vec3(0.0)
                     if wp.static(shaded or f.aovs):
                         n = shading_normal(scene, h, mat, uv)

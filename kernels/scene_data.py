@@ -61,6 +61,8 @@ class SceneData:
     # zero-length normals mean "shade this vertex flat"
     normals: wp.array(dtype=wp.vec3)
     uvs: wp.array(dtype=wp.vec2)
+    # TEXCOORD_1, for textures whose uv_set is 1; the very array ``uvs`` when no texture reads it
+    uvs1: wp.array(dtype=wp.vec2)
     tangents: wp.array(dtype=wp.vec4)
     colors: wp.array(dtype=wp.vec4)
     face_material: wp.array(dtype=wp.int32)

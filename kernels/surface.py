@@ -9,7 +9,7 @@ import warp as wp
 
 from .robust import offset_ray_origin, safe_normalize, triangle_hit_error
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
-from .textures import sample_texture
+from .textures import mip_lod, sample_texture, sample_texture_lod
 
 wp.set_module_options({"enable_backward": False})
 
@@ -76,16 +76,31 @@ def texture_or_one(scene: SceneData, index: int, uv: wp.vec2) -> wp.vec4:
     return sample_texture(scene.textures[index], scene.texels, uv)
 
 
+@wp.func
+def texture_at(scene: SceneData, index: int, uv: wp.vec2, duv_dx: wp.vec2, duv_dy: wp.vec2) -> wp.vec4:
+    """Texture ``index`` at uv, filtered trilinearly over a pixel footprint with the uv
+    derivatives duv_dx, duv_dy (kernels/footprint.py): the mip level mip_lod chooses; white for
+    an empty slot."""
+    if index == NO_TEXTURE:
+        return wp.vec4(1.0)
+    tex = scene.textures[index]
+    return sample_texture_lod(tex, scene.texels, uv, mip_lod(tex, duv_dx, duv_dy))
+
+
 @functools.cache
-def surface_tests(textured: bool, base_color_texture: bool, masked: bool):
+def surface_tests(textured: bool, base_color_texture: bool, masked: bool, second_uv_set: bool):
     """(hit_uv, is_cut_out, nearest_opaque, occluded) for a kernel whose scenes have UVs
-    (``textured``), base colour textures and alpha-masked materials (``masked``): each compiled
-    with only what those need.
+    (``textured``), base colour textures, alpha-masked materials (``masked``) and textures read
+    with TEXCOORD_1 (``second_uv_set``): each compiled with only what those need.
 
     - hit_uv(scene, h): the hit's TEXCOORD_0 (0 without textures).
     - is_cut_out(scene, h, mat, uv): whether an alpha-masked material (glTF alphaMode MASK) is cut
       out at the hit: base colour alpha times vertex colour alpha times texture alpha below the
-      cutoff.
+      cutoff; ``uv`` is the hit's TEXCOORD_0 (TEXCOORD_1 is interpolated here for a base colour
+      texture that reads it). The texture is read at level 0, whatever the pixel's footprint: a
+      cut-out is a yes-or-no test, and thresholding a coarser level's averaged alpha would thin
+      or thicken cut-outs with distance and disagree with the shadow rays, which have no
+      footprint.
     - nearest_opaque(scene, origin, direction, max_t) -> (found, hit): the nearest hit of origin
       + t direction, 0 <= t < max_t, not cut out: nearest hit after nearest hit past cut-outs (as
       camera rays pass them); after MAX_PASS_THROUGH cut-outs the last one counts as opaque.
@@ -105,7 +120,12 @@ def surface_tests(textured: bool, base_color_texture: bool, masked: bool):
         if mat.alpha_mask == 1:
             alpha = mat.base_color[3] * interpolate(scene.colors, h)[3]
             if wp.static(base_color_texture):
-                alpha = alpha * texture_or_one(scene, mat.base_color_texture, uv)[3]
+                at = uv
+                if wp.static(second_uv_set):
+                    if mat.base_color_texture != NO_TEXTURE:
+                        if scene.textures[mat.base_color_texture].uv_set == 1:
+                            at = interpolate(scene.uvs1, h)
+                alpha = alpha * texture_or_one(scene, mat.base_color_texture, at)[3]
             return alpha < mat.alpha_cutoff
         return False
 

@@ -259,6 +259,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="BRDF preset (default balanced; docs/accuracy.md gives each one's error and cost)")
         p.add_argument("--visibility", choices=("auto", "raycast", "raster"), default="auto",
                        help="primary visibility: ray cast, rasterized, or the cheaper by a cost model (default)")
+        p.add_argument("--texture-filter", choices=("trilinear", "bilinear"), default="trilinear",
+                       help="texture filtering: mip-mapped over each pixel's footprint (default), or the "
+                            "full-resolution image only (faster, aliases)")
         p.add_argument("--env", metavar="HDR", default=None,
                        help="light the scene with an equirectangular .hdr/.exr environment, also shown as the "
                             "background unless --background is given (needs pip install 'pbrwarp[env]')")
@@ -354,7 +357,7 @@ def _render_and_save(scene, camera, args, background) -> None:
 
     width, height = args.size
     options = dict(width=width, height=height, spp=args.spp, shadows=args.shadows, quality=args.quality,
-                   visibility=args.visibility, background=background)
+                   visibility=args.visibility, background=background, texture_filter=args.texture_filter)
     if args.explain:
         print(explain(scene, **options))
     frame = render(scene, camera, threads=args.threads, **options)

@@ -70,21 +70,39 @@ class Features:
     environment_background: bool = True
     # the model of each BRDF term
     brdf: BRDF = BRDF()
+    # how textures are filtered: "trilinear" (mip-mapped over each pixel's footprint), "bilinear"
+    # (the full-resolution image only), or False where no texture is read
+    texture_filter: object = "trilinear"
+    # textures read with a second uv set (glTF TEXCOORD_1)
+    second_uv_set: bool = True
 
     @property
     def textures(self) -> bool:
-        return (self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture
-                or self.normal_mapping or self.specular_texture or self.specular_color_texture
-                or self.anisotropy_texture or self.iridescence_texture)
+        return any(getattr(self, name) for name in TEXTURE_FLAGS)
 
     @classmethod
     def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), shadows="rays", ibl: IBL = IBL(),
-                   environment_background: bool = True) -> "Features":
+                   environment_background: bool = True, texture_filter: str = "trilinear") -> "Features":
         """Every effect compiled in and primary rays ray cast: the unspecialized kernel, the
-        reference for specialization. Sampling, outputs, BRDF, the shadow technique, the IBL rungs
-        and what misses show follow the options."""
+        reference for specialization. Sampling, outputs, BRDF, the shadow technique, the IBL rungs,
+        what misses show and the texture filter follow the options."""
         return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, shadows=shadow_mode(shadows)[0], environment=ibl,
-                   environment_background=environment_background)
+                   environment_background=environment_background, texture_filter=_texture_filter(texture_filter))
+
+
+# The Features flags that read textures (each a material slot, or the normal map's).
+TEXTURE_FLAGS = ("base_color_texture", "metallic_roughness_texture", "emissive_texture", "normal_mapping",
+                 "specular_texture", "specular_color_texture", "occlusion_texture", "anisotropy_texture",
+                 "iridescence_texture")
+# Material texture slots whose Features flag has another name.
+_SLOT_FLAGS = {"normal_texture": "normal_mapping"}
+TEXTURE_FILTERS = ("trilinear", "bilinear")
+
+
+def _texture_filter(mode) -> str:
+    if not isinstance(mode, str) or mode not in TEXTURE_FILTERS:
+        raise InputError(f"texture_filter must be one of {', '.join(map(repr, TEXTURE_FILTERS))}, got {mode!r}")
+    return mode
 
 
 @dataclass(frozen=True)
@@ -148,8 +166,10 @@ def _path_words(path: str) -> str:
 
 
 def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "auto",
-           samples: int = 480_000, ibl: IBL = IBL(), background_given: bool = False) -> list[Decision]:
+           samples: int = 480_000, ibl: IBL = IBL(), background_given: bool = False,
+           texture_filter: str = "trilinear") -> list[Decision]:
     """Every effect with whether the render simulates it and why, in the order explain prints."""
+    texture_filter = _texture_filter(texture_filter)
     prims = scene.primitives
     rows = gpu.material_rows
     mats = [p.material for p in prims]
@@ -251,6 +271,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     add("iridescence_texture", present, why)
     present, why = slot("normal_texture", "normal map")
     add("normal_mapping", present, why + ("" if present else ": no tangent frames"))
+    decisions += _texture_decisions(prims, decisions, texture_filter)
     unlit = sum(1 for m in mats if m.unlit)
     add("unlit", unlit, f"unlit (KHR_materials_unlit): {_count(unlit, 'material')} show their base colour"
         if unlit else "no unlit materials")
@@ -272,6 +293,26 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
         if single else "no pass-through: every material is double-sided and opaque")
     add("aovs", aovs, "depth and normal outputs" if aovs else "no depth and normal outputs: aovs=False")
     return decisions
+
+
+def _texture_decisions(prims, decisions, texture_filter: str) -> list[Decision]:
+    """How the textures read (the slots ``decisions`` keep) are filtered, and whether any of them
+    reads TEXCOORD_1."""
+    read = {d.name for d in decisions if d.name in TEXTURE_FLAGS and d.present}
+    if not read:
+        return [Decision("texture_filter", False, "no texture filtering: no textures read"),
+                Decision("second_uv_set", False, "no second uv set: no textures read")]
+    if texture_filter == "trilinear":
+        why = ("textures filtered trilinearly: the mip level of each sample's footprint, from ray differentials "
+               "(isotropic: the footprint's longer side)")
+    else:
+        why = ("textures filtered bilinearly at full resolution (texture_filter='bilinear'): textures finer than "
+               "the pixels alias")
+    second = sorted({slot for p in prims if p.uvs is not None for slot, tex, _ in p.material.textures()
+                     if tex.texcoord == 1 and _SLOT_FLAGS.get(slot, slot) in read})
+    return [Decision("texture_filter", texture_filter, why),
+            Decision("second_uv_set", bool(second), f"second uv set (TEXCOORD_1) read by {', '.join(second)}"
+                     if second else "no second uv set: every texture read uses TEXCOORD_0")]
 
 
 def scene_features(scene, gpu, **options) -> Features:

@@ -22,7 +22,7 @@ KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_lig
 Everything else a file asks for is named in a warning at load, once per kind ("KHR_materials_sheen
 on 3 materials ('cloth', ...) ignored: rendered without sheen"), saying what is rendered instead,
 and kept in ``GltfContent.load_warnings`` (``Scene.load_warnings``, listed by ``pw.explain``): the
-extensions ``_EXTENSIONS`` marks IGNORED and unknown ones, TEXCOORD_1 and above (sampled as
+extensions ``_EXTENSIONS`` marks IGNORED and unknown ones, TEXCOORD_2 and above (sampled as
 TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification,
 alphaMode BLEND (rendered opaque), animations (the nodes' stored static pose is shown), points and
 lines (skipped), cameras other than perspective (skipped) and scenes other than the default.
@@ -426,6 +426,7 @@ class _PrimitiveData:
     colors: np.ndarray | None
     material: int | None
     targets: list = field(default_factory=list)  # the primitive's morph targets, as in the JSON
+    uvs1: np.ndarray | None = None  # TEXCOORD_1
 
     @property
     def where(self) -> str:
@@ -492,7 +493,7 @@ def _read_primitive(doc: _Document, key, prim) -> _PrimitiveData:
         raise doc.error(f"{where} has {n} vertices and {triangles} triangles, more than LoadLimits allows "
                         f"({limits.max_vertices} vertices, {limits.max_triangles} triangles)")
     attrs = prim.get("attributes", {})
-    for name in ("NORMAL", "TEXCOORD_0", "TANGENT", "COLOR_0"):
+    for name in ("NORMAL", "TEXCOORD_0", "TEXCOORD_1", "TANGENT", "COLOR_0"):
         if name in attrs:
             count = doc.element("accessors", attrs[name], f"{name} of {where}")["count"]
             if count != n:
@@ -518,7 +519,7 @@ def _read_primitive(doc: _Document, key, prim) -> _PrimitiveData:
         key=key, positions=positions, faces=_primitive_faces(doc, prim, n, where),
         normals=attribute("NORMAL", (3,)), uvs=attribute("TEXCOORD_0", (2,)),
         tangents=attribute("TANGENT", (4,)), colors=colors, material=material,
-        targets=_morph_targets(doc, prim, n, where),
+        targets=_morph_targets(doc, prim, n, where), uvs1=attribute("TEXCOORD_1", (2,)),
     )
 
 
@@ -809,15 +810,24 @@ class _Builder:
             material = self.materials.get(data.material, data.where)
         normals = data.normals if data.normals is not None else np.zeros_like(data.positions)
         tangents = data.tangents
+        second = [slot for slot, tex, _ in material.textures() if tex.texcoord == 1]
+        if second and data.uvs1 is None:
+            self.doc.notes.add("TEXCOORD_1 missing", "TEXCOORD_1 missing on {subjects}: their textures that ask for "
+                               "it sampled with TEXCOORD_0 instead", "primitive", data.key,
+                               f"{data.key[1]} of mesh {data.key[0]}")
         if tangents is None and (material.normal_texture is not None or material.anisotropy_strength > 0.0):
-            if data.uvs is not None:
-                tangents = generate_tangents(data.positions, normals, data.uvs, data.faces)
+            # the tangent frame follows the uv set the normal map (else the anisotropy map) is read with
+            mapped = material.normal_texture or material.anisotropy_texture
+            uvs = data.uvs1 if mapped is not None and mapped.texcoord == 1 and data.uvs1 is not None else data.uvs
+            if uvs is not None:
+                tangents = generate_tangents(data.positions, normals, uvs, data.faces)
             elif material.anisotropy_strength > 0.0:
                 self.doc.notes.add("anisotropy without tangents", "KHR_materials_anisotropy not applied on "
                                    "{subjects}: no TANGENT nor TEXCOORD_0 to give its direction (shaded isotropic)",
                                    "mesh", data.key, f"{data.key[0]} primitive {data.key[1]}")
         try:
-            return Primitive(data.positions, data.faces, material, normals, data.uvs, tangents, data.colors)
+            return Primitive(data.positions, data.faces, material, normals, data.uvs, tangents, data.colors,
+                             uvs1=data.uvs1)
         except (InputError, InputTypeError) as err:
             raise self.doc.error(f"mesh {data.key[0]} primitive {data.key[1]}: {err}") from None
 
@@ -895,9 +905,12 @@ class _Materials:
         tex = doc.element("textures", info.get("index"), label)
         transform = info.get("extensions", {}).get("KHR_texture_transform", {})
         tex_coord = transform.get("texCoord", info.get("texCoord", 0))
-        if tex_coord != 0:
+        if isinstance(tex_coord, bool) or not isinstance(tex_coord, int) or tex_coord < 0:
+            raise doc.error(f"{label}: texCoord must be a non-negative integer, got {tex_coord!r}")
+        if tex_coord > 1:
             doc.notes.add(f"TEXCOORD_{tex_coord}", f"TEXCOORD_{tex_coord} not read: {{subjects}} sampled with "
                           "TEXCOORD_0 instead", "texture slot", label)
+            tex_coord = 0
         # EXT_texture_webp names a WebP image, which Pillow decodes; "source" is then the fallback
         source = tex.get("extensions", {}).get("EXT_texture_webp", {}).get("source", tex.get("source"))
         source = texture_source(doc, tex, info["index"], label, source)  # KHR_texture_basisu's KTX2 image first
@@ -913,10 +926,10 @@ class _Materials:
         offset = tuple(float(x) for x in transform.get("offset", (0.0, 0.0)))
         scale = tuple(float(x) for x in transform.get("scale", (1.0, 1.0)))
         rotation = float(transform.get("rotation", 0.0))
-        key = (source, *wrap, offset, rotation, scale)
+        key = (source, *wrap, offset, rotation, scale, tex_coord)
         if key not in self._textures:
             self._textures[key] = Texture(doc.image(source), wrap_s=wrap[0], wrap_t=wrap[1],
-                                          offset=offset, rotation=rotation, scale=scale)
+                                          offset=offset, rotation=rotation, scale=scale, texcoord=tex_coord)
         return self._textures[key]
 
 

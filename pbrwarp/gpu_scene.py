@@ -25,7 +25,7 @@ from .locality import inverse_permutation, locality_order
 from .materials import Material
 from .raster import Clusters, triangle_clusters
 from .scene import unit_rows
-from .textures import UNORM8_DECODE, WRAP_MODES, Texture
+from .textures import UNORM8_DECODE, WRAP_MODES, Texture, mip_levels, mip_texel_count
 from pbrwarp.kernels.lights import LightData
 from pbrwarp.kernels.scene_data import MaterialData, SceneData
 from pbrwarp.kernels.textures import TEXELS_FLOAT, TEXELS_SRGB8, TEXELS_UNORM8, Texels, TextureData, texel_store
@@ -43,6 +43,8 @@ class _Geometry:
     indices: wp.array
     normals: wp.array
     uvs: wp.array
+    # TEXCOORD_1 (a mesh without it repeats its uvs), None when no mesh has a second set
+    uvs1: wp.array | None
     tangents: wp.array
     colors: wp.array
     face_primitive: wp.array
@@ -86,7 +88,10 @@ def _primitive_tangents(prim):
     from .tangents import generate_tangents
 
     normals = prim.normals if prim.normals is not None else np.zeros_like(prim.positions)
-    return generate_tangents(prim.positions, normals, prim.uvs, prim.faces)
+    # the tangent frame follows the uv set the normal map (else the anisotropy map) is read with
+    mapped = prim.material.normal_texture or prim.material.anisotropy_texture
+    uvs = prim.uvs1 if mapped is not None and mapped.texcoord == 1 and prim.uvs1 is not None else prim.uvs
+    return generate_tangents(prim.positions, normals, uvs, prim.faces)
 
 
 def _build_geometry(prims) -> _Geometry:
@@ -113,6 +118,9 @@ def _build_geometry(prims) -> _Geometry:
     # under- or overflow in the kernels; zero rows (flat shading) stay zero
     normals = unit_rows(column([p.normals for p in prims], 3, 0.0)).astype(np.float32)
     uvs = column([p.uvs for p in prims], 2, 0.0).astype(np.float32)
+    uvs1 = None
+    if any(p.uvs1 is not None for p in prims):
+        uvs1 = column([p.uvs if p.uvs1 is None else p.uvs1 for p in prims], 2, 0.0).astype(np.float32)
     tangents = column([_primitive_tangents(p) for p in prims], 4, 0.0).astype(np.float32)
     colors = column([p.colors for p in prims], 4, 1.0).astype(np.float32)
     face_primitive = np.concatenate([np.full(len(p.faces), i, np.int32) for i, p in enumerate(prims)])
@@ -129,6 +137,7 @@ def _build_geometry(prims) -> _Geometry:
         indices=wp_indices,
         normals=wp.array(normals[vertex_order], dtype=wp.vec3, device="cpu"),
         uvs=wp.array(uvs[vertex_order], dtype=wp.vec2, device="cpu"),
+        uvs1=None if uvs1 is None else wp.array(uvs1[vertex_order], dtype=wp.vec2, device="cpu"),
         tangents=wp.array(tangents[vertex_order], dtype=wp.vec4, device="cpu"),
         colors=wp.array(colors[vertex_order], dtype=wp.vec4, device="cpu"),
         face_primitive=wp.array(face_primitive[face_order], dtype=wp.int32, device="cpu"),
@@ -136,47 +145,69 @@ def _build_geometry(prims) -> _Geometry:
     )
 
 
-def _build_texels(prims, key) -> _Texels:
-    """The texture table and texels of the textured primitives' materials. 8-bit images are
-    stored once as they are, however many slots use them (sRGB-decoded or not, in the kernel);
-    others as linear float32 texels per (texture, srgb) slot."""
-    slots, rows = {}, []
-    floats, unorm8, unorm8_offsets = [], [], {}  # unorm8_offsets: id(texture) -> first texel
-    float_count = unorm8_count = 0
+def _texture_slots(prims) -> dict:
+    """(id(texture), srgb) -> (texture, srgb) of every texture the primitives with UVs sample."""
+    slots = {}
     for prim in prims:
-        if prim.uvs is None:
-            continue
-        for _, tex, srgb in prim.material.textures():
-            slot_key = (id(tex), srgb)
-            if slot_key in slots:
-                continue
-            h, w = tex.shape
-            row = TextureData()
-            if tex.rgba8 is not None:
-                if id(tex) not in unorm8_offsets:
-                    unorm8_offsets[id(tex)] = unorm8_count
-                    unorm8.append(tex.rgba8.reshape(-1, 4))
-                    unorm8_count += h * w
-                row.offset = unorm8_offsets[id(tex)]
-                row.texel_format = TEXELS_SRGB8 if srgb else TEXELS_UNORM8
-            else:
-                row.offset = float_count
-                row.texel_format = TEXELS_FLOAT
-                floats.append(tex.texels(srgb).reshape(-1, 4))
-                float_count += h * w
-            if max(float_count, unorm8_count) > MAX_ELEMENTS:
-                raise InputError("textures too large: more than 2^31 texels in one scene")
-            m = tex.uv_matrix()
-            row.width, row.height = w, h
-            row.wrap_s, row.wrap_t = WRAP_MODES[tex.wrap_s], WRAP_MODES[tex.wrap_t]
-            row.uv_row0, row.uv_row1 = wp.vec3(*m[0]), wp.vec3(*m[1])
-            slots[slot_key] = len(rows)
-            rows.append(row)
+        if prim.uvs is not None:
+            for _, tex, srgb in prim.material.textures():
+                slots.setdefault((id(tex), srgb), (tex, srgb))
+    return slots
+
+
+def _build_texels(prims, key) -> _Texels:
+    """The texture table and texels of the textured primitives' materials: each (texture, srgb)
+    slot's mip chain (pbrwarp.textures.mip_levels). 8-bit images stay 8-bit, level 0 stored once
+    however many slots read it (sRGB-decoded or not, in the kernel), the levels past it per slot
+    (averaged in linear space, then re-encoded as the slot decodes them); others are stored as
+    linear float32 texels per slot. The texel counts, levels included, are checked against the
+    kernels' int32 offsets before any level is made."""
+    slots = _texture_slots(prims)
+    texels, counted = {False: 0, True: 0}, set()  # texels of float and 8-bit images; 8-bit ones counted
+    for tex, _ in slots.values():
+        eight_bit = tex.rgba8 is not None
+        _, with_levels = mip_texel_count(*tex.shape)
+        shared = eight_bit and id(tex) in counted  # its level 0 is counted already
+        texels[eight_bit] += with_levels - (tex.shape[0] * tex.shape[1] if shared else 0)
+        counted.add(id(tex))
+    if max(texels.values()) > MAX_ELEMENTS:
+        raise InputError(f"textures too large: {max(texels.values()):,} texels of one kind with their mip levels, "
+                         "more than the 2^31 - 1 one scene may hold")
+    rows, stored = [], {TEXELS_FLOAT: [], TEXELS_UNORM8: []}  # texel chunks, in order
+    count = {TEXELS_FLOAT: 0, TEXELS_UNORM8: 0}
+    level0 = {}  # id(texture) -> first texel of an 8-bit image's level 0
+
+    def store(kind, chunk) -> int:
+        stored[kind].append(chunk.reshape(-1, 4))
+        count[kind] += len(stored[kind][-1])
+        return count[kind] - len(stored[kind][-1])
+
+    for tex, srgb in slots.values():
+        h, w = tex.shape
+        row = TextureData()
+        if tex.rgba8 is not None:
+            kind = TEXELS_UNORM8
+            if id(tex) not in level0:
+                level0[id(tex)] = store(kind, tex.rgba8)
+            row.offset, row.texel_format = level0[id(tex)], TEXELS_SRGB8 if srgb else TEXELS_UNORM8
+        else:
+            kind = TEXELS_FLOAT
+            row.offset, row.texel_format = store(kind, tex.texels(srgb)), TEXELS_FLOAT
+        levels = mip_levels(tex, srgb)
+        row.mip_offset = count[kind]
+        for level in levels:
+            store(kind, level)
+        m = tex.uv_matrix()
+        row.width, row.height, row.levels = w, h, 1 + len(levels)
+        row.wrap_s, row.wrap_t = WRAP_MODES[tex.wrap_s], WRAP_MODES[tex.wrap_t]
+        row.uv_set = tex.texcoord
+        row.uv_row0, row.uv_row1 = wp.vec3(*m[0]), wp.vec3(*m[1])
+        rows.append(row)
     return _Texels(
         key=key,
-        slots=slots,
+        slots={slot: i for i, slot in enumerate(slots)},
         table=wp.array(rows if rows else [TextureData()], dtype=TextureData, device="cpu"),
-        texels=texel_store(floats, unorm8, UNORM8_DECODE),
+        texels=texel_store(stored[TEXELS_FLOAT], stored[TEXELS_UNORM8], UNORM8_DECODE),
     )
 
 
@@ -272,6 +303,7 @@ def _upload_rows(scene, prims, geometry: _Geometry, texels: _Texels) -> GpuScene
     data.mesh = geometry.mesh.id
     data.positions, data.indices = geometry.positions, geometry.indices
     data.normals, data.uvs, data.tangents, data.colors = geometry.normals, geometry.uvs, geometry.tangents, geometry.colors
+    data.uvs1 = geometry.uvs if geometry.uvs1 is None else geometry.uvs1
     data.face_material = geometry.face_primitive
     data.materials = wp.array(materials, dtype=MaterialData, device="cpu")
     data.textures, data.texels = texels.table, texels.texels

@@ -76,7 +76,7 @@ def _vertex_attribute(attr: str, width: int):
     return check
 
 
-VERTEX_ATTRIBUTES = (("normals", 3), ("uvs", 2), ("tangents", 4), ("colors", 4))
+VERTEX_ATTRIBUTES = (("normals", 3), ("uvs", 2), ("tangents", 4), ("colors", 4), ("uvs1", 2))
 
 
 @dataclass(eq=False)
@@ -89,7 +89,8 @@ class Primitive(validate.Checked):
     zero length mean "no normal here" (those triangles are shaded flat) and which need not be
     unit; ``uvs`` (N, 2) in glTF's convention ((0, 0) = top-left of the image); ``tangents``
     (N, 4), glTF's (xyz, handedness w), generated from UVs when absent and a normal texture needs
-    them; ``colors`` (N, 4), linear RGBA multiplying the base colour. ``name`` is for messages.
+    them; ``colors`` (N, 4), linear RGBA multiplying the base colour; ``uvs1`` (N, 2), a second
+    uv set (glTF TEXCOORD_1) for textures whose ``texcoord`` is 1. ``name`` is for messages.
     Every field is checked whenever it is set, by the constructor or later (InputError for a bad
     shape or value, InputTypeError for a bad type), so a mesh with another vertex count is a new
     Primitive. Replace an array rather than change it in place: renders see assignments only.
@@ -103,6 +104,7 @@ class Primitive(validate.Checked):
     tangents: np.ndarray | None = None
     colors: np.ndarray | None = None
     name: str = ""
+    uvs1: np.ndarray | None = None
 
     _checks = {"positions": _positions, "faces": _faces, "material": _material,
                **{attr: _vertex_attribute(attr, width) for attr, width in VERTEX_ATTRIBUTES}}
@@ -140,7 +142,7 @@ def transform_primitive(prim: Primitive, matrix) -> Primitive:
         xyz = unit_rows(prim.tangents[:, :3] @ linear.T)
         tangents = np.concatenate([xyz, prim.tangents[:, 3:] * np.sign(det)], axis=1)
     faces = prim.faces[:, ::-1] if det < 0 else prim.faces
-    return Primitive(positions, faces, prim.material, normals, prim.uvs, tangents, prim.colors, prim.name)
+    return Primitive(positions, faces, prim.material, normals, prim.uvs, tangents, prim.colors, prim.name, prim.uvs1)
 
 
 def unit_rows(v):

@@ -137,6 +137,7 @@ def render(
     brdf: BRDF | None = None,
     visibility: str = "auto",
     ibl: IBL | None = None,
+    texture_filter: str = "trilinear",
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
@@ -173,6 +174,10 @@ def render(
       test on the triangle it names, so both shade identically where they pick the same
       triangle), or "auto" (the default: the cheaper by the cost model bench/visibility.py fits,
       and ray casting where the buffer would exceed 1 GiB).
+    - ``texture_filter``: "trilinear" (the default) filters each texture lookup over the sample's
+      footprint on the surface (ray differentials of one pixel, or of one of ``spp`` strata), from
+      the texture's mip levels; "bilinear" reads the full-resolution image only (cheaper; textures
+      finer than the pixels alias). docs/materials.md says how.
 
     Raises InputTypeError for a scene, camera or option of the wrong type, InputError for a value
     out of range, a scene without meshes or a frame past a limit (before anything is allocated),
@@ -201,10 +206,10 @@ def render(
     brdf = brdf_for_quality(quality, brdf)
     gpu = upload(scene)
     options = dict(shadows=shadows, spp=spp, aovs=aovs, brdf=brdf, visibility=visibility, samples=width * height * spp,
-                   ibl=ibl, background_given=background_given)
+                   ibl=ibl, background_given=background_given, texture_filter=texture_filter)
     features = scene_features(scene, gpu, **options)
     if not specialize:
-        features = Features.everything(spp, aovs, brdf, shadows, ibl, features.environment_background)
+        features = Features.everything(spp, aovs, brdf, shadows, ibl, features.environment_background, texture_filter)
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
@@ -249,7 +254,7 @@ def render(
 
 def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
             brdf: BRDF | None = None, visibility: str = "auto", width: int = 800, height: int = 600,
-            ibl: IBL | None = None, background=None, **_render_options) -> str:
+            ibl: IBL | None = None, background=None, texture_filter: str = "trilinear", **_render_options) -> str:
     """The text saying which effects :func:`render` with these options simulates for ``scene``,
     and why each absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow
     itself ..."), with the estimated cost of each primary visibility path, and, last, what the
@@ -268,4 +273,5 @@ def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality
     samples = width * height * spp
     return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf),
                            visibility=visibility, samples=samples, ibl=ibl_for_quality(quality, ibl),
-                           background_given=background is not None), scene.load_warnings)
+                           background_given=background is not None, texture_filter=texture_filter),
+                    scene.load_warnings)

@@ -79,7 +79,8 @@ class Scene:
         Inf, or a singular transform."""
         if isinstance(mesh, Primitive):
             prim = mesh if material is None else Primitive(
-                mesh.positions, mesh.faces, material, mesh.normals, mesh.uvs, mesh.tangents, mesh.colors, mesh.name)
+                mesh.positions, mesh.faces, material, mesh.normals, mesh.uvs, mesh.tangents, mesh.colors, mesh.name,
+                mesh.uvs1)
         else:
             prim = primitive_from_trimesh(mesh, material)
         if transform is not None:

@@ -181,6 +181,12 @@ def _wrap_mode(name: str):
     return check
 
 
+def _uv_set(value) -> int:
+    if isinstance(value, bool) or value not in (0, 1):
+        raise InputError(f"Texture texcoord must be 0 or 1 (the uv set it is read with), got {value!r}")
+    return int(value)
+
+
 def _image(texture, image):
     """``image`` as given; its texels, converted (and so checked), become ``texture._rgba``."""
     object.__setattr__(texture, "_rgba", image_to_rgba(image))
@@ -200,6 +206,8 @@ class Texture(validate.Checked):
     - ``wrap_s``/``wrap_t``: "repeat" (default), "clamp" or "mirror".
     - ``offset`` (default (0, 0)), ``rotation`` (radians, default 0) and ``scale`` (default
       (1, 1)): KHR_texture_transform's, in UV units, finite.
+    - ``texcoord``: the uv set the texture is read with, 0 (the mesh's ``uvs``, glTF TEXCOORD_0;
+      the default) or 1 (its ``uvs1``, TEXCOORD_1; a mesh without ``uvs1`` reads ``uvs``).
 
     Every field is checked whenever it is set, by the constructor or later: InputError for a
     value out of range (an empty image, NaN texels, an unknown wrap mode), InputTypeError for an
@@ -213,6 +221,7 @@ class Texture(validate.Checked):
     offset: tuple[float, float] = (0.0, 0.0)
     rotation: float = 0.0
     scale: tuple[float, float] = (1.0, 1.0)
+    texcoord: int = 0
     _rgba: np.ndarray | None = field(default=None, repr=False)
 
     _checks = {
@@ -221,6 +230,7 @@ class Texture(validate.Checked):
         "offset": lambda texture, value: validate.finite_vector(value, 2, "Texture offset"),
         "rotation": lambda texture, value: validate.finite_scalar(value, "Texture rotation"),
         "scale": lambda texture, value: validate.finite_vector(value, 2, "Texture scale"),
+        "texcoord": lambda texture, value: _uv_set(value),
         "image": _image,
     }
 
@@ -263,3 +273,86 @@ class Texture(validate.Checked):
         sx, sy = self.scale
         tx, ty = self.offset
         return np.array([[c * sx, s * sy, tx], [-s * sx, c * sy, ty]], dtype=np.float32)
+
+
+def linear_to_srgb(c: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`srgb_to_linear` (IEC 61966-2-1's OETF), per channel, for values in [0, 1]."""
+    c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
+    return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1.0 / 2.4) - 0.055)
+
+
+def _box_taps(size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Source indices (m, 3) and weights (m, 3) of the box filter that shrinks a side of ``size``
+    texels to m = max(1, size // 2): output texel i averages the piecewise-constant source over
+    [i size / m, (i + 1) size / m], so an even side averages pairs and an odd side's boxes are
+    2 + 1/m texels wide, weighting the texels they cover in part by the covered fraction. Each
+    level's mean therefore equals its parent's exactly (up to rounding)."""
+    m = max(1, size // 2)
+    width = size / m
+    start = np.arange(m, dtype=np.float64)[:, None] * width
+    first = np.floor(start).astype(np.int64)
+    taps = first + np.arange(3)[None, :]
+    overlap = np.minimum(taps + 1, start + width) - np.maximum(taps, start)
+    weights = np.clip(overlap, 0.0, None) / width
+    return np.minimum(taps, size - 1), weights
+
+
+def _halved(img: np.ndarray, axis: int) -> np.ndarray:
+    """``img`` with the side along ``axis`` (0 or 1) shrunk by the box filter of :func:`_box_taps`;
+    an even side averages neighbouring pairs directly (no gathered copy of the image)."""
+    size = img.shape[axis]
+    if size % 2 == 0:
+        pairs = img.reshape(img.shape[:axis] + (size // 2, 2) + img.shape[axis + 1:])
+        return pairs.mean(axis=axis + 1, dtype=img.dtype)
+    taps, weights = _box_taps(size)
+    if axis == 0:
+        return np.einsum("mk,mkwc->mwc", weights.astype(img.dtype), img[taps])
+    return np.einsum("nk,hnkc->hnc", weights.astype(img.dtype), img[:, taps])
+
+
+def box_downsample(linear: np.ndarray) -> np.ndarray:
+    """The next mip level of linear (H, W, C) texels, each side halved (rounded down, at least 1)
+    by the area-weighted box filter of :func:`_box_taps`; float32 texels stay float32 (the
+    precision they are stored in), anything else is computed in float64."""
+    img = np.asarray(linear)
+    if img.dtype != np.float32:
+        img = img.astype(np.float64)
+    return _halved(_halved(img, 0), 1)
+
+
+def mip_chain(linear: np.ndarray) -> list[np.ndarray]:
+    """Linear (H, W, 4) texels and their mip levels down to 1 x 1 texel, level 0 first
+    (1 + floor(log2(max(H, W))) levels), float32 for float32 texels, else float64. The levels
+    past 0 add at most a third of level 0's texels (exactly a third for square power-of-two
+    sides)."""
+    img = np.asarray(linear)
+    levels = [img if img.dtype == np.float32 else img.astype(np.float64)]
+    while max(levels[-1].shape[:2]) > 1:
+        levels.append(box_downsample(levels[-1]))
+    return levels
+
+
+def mip_texel_count(height: int, width: int) -> tuple[int, int]:
+    """(levels, texels) of the full mip chain of a height x width image: what :func:`mip_chain`
+    makes, counted without making it."""
+    levels = max(height, width).bit_length()  # 1 + floor(log2(longer side))
+    return levels, sum(max(1, height >> lv) * max(1, width >> lv) for lv in range(levels))
+
+
+def encode_unorm8(linear: np.ndarray, srgb: bool) -> np.ndarray:
+    """Linear RGBA values in [0, 1] as 8-bit texels (rounded to nearest): colour channels
+    sRGB-encoded when ``srgb`` so that UNORM8_DECODE gives them back, alpha never."""
+    out = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0).copy()
+    if srgb:
+        out[..., :3] = linear_to_srgb(out[..., :3])
+    return np.rint(out * 255.0).astype(np.uint8)
+
+
+def mip_levels(texture: "Texture", srgb: bool) -> list[np.ndarray]:
+    """``texture``'s mip levels past level 0, in its stored form: 8-bit textures stay 8-bit
+    (averaged in linear space, then re-encoded as they were, so the kernels' decode stays
+    correct), others float32 linear."""
+    chain = mip_chain(texture.texels(srgb))[1:]
+    if texture.rgba8 is not None:
+        return [encode_unorm8(level, srgb) for level in chain]
+    return [level.astype(np.float32) for level in chain]

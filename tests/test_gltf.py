@@ -450,7 +450,7 @@ def test_material_extensions_and_texture_settings(tmp_path):
                        "KHR_materials_emissive_strength": {"emissiveStrength": 4.0}},
     }]
     b.node(mesh=b.quad(material=0))
-    with pytest.warns(UserWarning, match="TEXCOORD_1"):
+    with pytest.warns(UserWarning, match="TEXCOORD_1 missing on primitive 0 of mesh 0"):
         prim, = load_gltf(b.glb(tmp_path / "material.glb")).primitives
     m = prim.material
     assert m.name == "fancy" and m.base_color == (0.5, 0.25, 1.0, 0.75)
@@ -461,7 +461,9 @@ def test_material_extensions_and_texture_settings(tmp_path):
     tex = m.base_color_texture
     assert (tex.wrap_s, tex.wrap_t) == ("mirror", "clamp")
     assert tex.offset == (0.25, 0.5) and tex.rotation == pytest.approx(0.3) and tex.scale == (2.0, 3.0)
-    assert m.metallic_roughness_texture is m.normal_texture is m.occlusion_texture  # same image, sampler
+    assert m.metallic_roughness_texture is m.normal_texture  # same image, sampler and uv set
+    assert m.occlusion_texture.texcoord == 1 and m.normal_texture.texcoord == 0
+    assert m.occlusion_texture.image is m.normal_texture.image
     assert m.metallic_roughness_texture is not tex
     assert (m.normal_texture.wrap_s, m.normal_texture.wrap_t) == ("repeat", "repeat")
     # No TANGENT but a normal map: generated; u runs along +x, top of the image at +y.

@@ -122,11 +122,13 @@ def test_ignored_material_extension_is_named_with_what_is_rendered_instead(tmp_p
      r"magFilter NEAREST of sampler 0 not honoured: their textures are filtered bilinearly"),
     (lambda b: b.json.update(cameras=[{"type": "orthographic", "name": "top"}]) or b.node(camera=0),
      r"camera 'top' of type 'orthographic' skipped: pbrwarp reads perspective cameras only"),
+    (lambda b: add_texture(b) or b.json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"].update(texCoord=2),
+     r"TEXCOORD_2 not read: texture slot material 0 \('mat'\) baseColorTexture sampled with TEXCOORD_0 instead"),
     (lambda b: add_texture(b) or b.json["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"].update(texCoord=1),
-     r"TEXCOORD_1 not read: texture slot material 0 \('mat'\) baseColorTexture sampled with TEXCOORD_0 instead"),
+     r"TEXCOORD_1 missing on primitive 0 of mesh 0: their textures that ask for it sampled with TEXCOORD_0 instead"),
 ], ids=["avif", "meshopt", "variants", "image_based_lights",
         "only_in_extensionsUsed", "unknown", "blend", "animation", "texcoord_morph_target",
-        "default_scene", "first_scene", "nearest", "orthographic", "texcoord_1"])
+        "default_scene", "first_scene", "nearest", "orthographic", "texcoord_2", "texcoord_1_missing"])
 def test_unhonoured_feature_is_named_in_one_warning(tmp_path, edit, expected):
     scene, messages = load_warned(quad_file(tmp_path, edit))
     assert len(messages) == 1 and re.search(expected, messages[0]), messages
@@ -272,10 +274,10 @@ BOARD_NOTES = {
     "Box": [], "ClearCoatTest": ["KHR_materials_clearcoat", "alphaMode BLEND"],
     "EmissiveStrengthTest": [], "IridescenceSuzanne": ["KHR_materials_transmission", "KHR_materials_volume"],
     "MeshPrimitiveModes": ["points", "lines", "line loops", "line strips"],
-    "MorphPrimitivesTest": [], "MultiUVTest": ["TEXCOORD_1"],
+    "MorphPrimitivesTest": [], "MultiUVTest": [],
     "RecursiveSkeletons": ["animation"], "SheenCloth": ["KHR_materials_sheen"],
     "SimpleSkin": ["animation"], "SimpleSparseAccessor": [], "SpecularTest": [],
-    "TextureTransformMultiTest": ["KHR_materials_clearcoat", "TEXCOORD_1"],
+    "TextureTransformMultiTest": ["KHR_materials_clearcoat"],
     "TransmissionRoughnessTest": ["KHR_materials_transmission", "KHR_materials_volume"],
     "TransmissionTest": ["KHR_materials_transmission"], "UnlitTest": [],
 }

@@ -77,9 +77,14 @@ def scenes():
     mixed = sphere_scene(pw.Material(metallic=0.5, roughness=0.3), [POINT, DIRECTIONAL, SPOT])
     mixed.add_mesh(box((6, 0.2, 6), (0, -1.2, 0)), pw.Material(double_sided=False, alpha_mode="MASK", alpha_cutoff=0.3,
                                                                  base_color=(0.5, 0.5, 0.5, 0.6)))
+    two_sets = sphere_scene(textured_material(), [POINT], uv_sphere())
+    two_sets.primitives[0].uvs1 = two_sets.primitives[0].uvs[:, ::-1] * 3.0  # TEXCOORD_1
+    two_sets.primitives[0].material.emissive_texture.texcoord = 1
+    two_sets.primitives[0].material.normal_texture.texcoord = 1
     return [
         ("bare convex", sphere_scene(pw.Material(), [DIRECTIONAL]),
-         {"shadows", "base_color_texture", "normal_mapping", "emission", "point_lights", "spot_lights", "pass_through"}),
+         {"shadows", "base_color_texture", "normal_mapping", "emission", "point_lights", "spot_lights", "pass_through",
+          "texture_filter", "second_uv_set"}),
         ("all metal", sphere_scene(pw.Material(metallic=1.0, roughness=0.3), [POINT]), {"diffuse", "directional_lights"}),
         ("pure lambert", sphere_scene(pw.Material(specular=0.0), [SPOT]), {"specular"}),
         ("no lights", sphere_scene(pw.Material(emissive=(0.5, 0.2, 0.1)), []), {"diffuse", "specular", "shadows"}),
@@ -92,6 +97,7 @@ def scenes():
          {"base_color_texture", "specular_texture", "normal_mapping", "unlit", "iridescence"}),
         ("iridescent", sphere_scene(iridescent_material(), [POINT, SPOT], uv_sphere()),
          {"base_color_texture", "anisotropy", "normal_mapping"}),
+        ("second uv set", two_sets, {"spot_lights", "specular_texture", "specular_color_texture"}),
         ("everything", mixed, set()),
     ]
 
@@ -102,6 +108,7 @@ def test_specialized_image_equals_the_all_effects_image(name, scene, absent, spp
     features = scene_features(scene, upload(scene), shadows=True, spp=spp)
     dropped = {k for k, v in features.__dict__.items() if not v}
     assert absent <= dropped, (name, dropped)
+    assert features.second_uv_set == (name == "second uv set")
     cam = pw.Camera.look_at(eye=(0.5, 1.5, 4.0), target=(0, -0.3, 0))
     # primary visibility pinned to ray casting: the raster path's agreement is tests/test_visibility_path.py's
     special = render_checked(scene, cam, size=(64, 48), spp=spp, visibility="raycast")
@@ -127,13 +134,31 @@ def test_bare_scene_kernel_has_no_shadow_rays_textures_or_tangent_frames():
     source = generated_source(render_kernel(scene_features(scene, upload(scene), shadows=True, spp=1)))
     for absent in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "orthonormal_tangent",
                    "spot_attenuation", "sample_positional", "multi_jittered_sample", "D_GGX_Anisotropic",
-                   "F_Iridescence"):
+                   "F_Iridescence", "mip_lod", "uv_footprint"):
         assert absent not in source, absent
     assert "mesh_query_ray" in source and "D_GGX" in source  # it is the right file
     everything = generated_source(render_kernel(pw.Features.everything(spp=4)))
     for present in ("light_buffer_occlusion", "sample_texture", "perturb_normal", "spot_attenuation", "multi_jittered_sample",
-                    "D_GGX_Anisotropic", "F_Iridescence"):
+                   "spot_attenuation", "sample_positional", "multi_jittered_sample", "D_GGX_Anisotropic",
+                   "F_Iridescence", "mip_lod", "uv_footprint"):
         assert present in everything, present
+
+
+@pytest.mark.parametrize("texture_filter", ["trilinear", "bilinear"])
+def test_texture_filter_is_compiled_in_as_chosen(texture_filter):
+    """The textured scene's kernel for each filter renders as the all-effects kernel with that
+    filter; only the trilinear one holds the footprint and mip level code."""
+    scene = sphere_scene(textured_material(), [POINT, DIRECTIONAL], uv_sphere())
+    features = scene_features(scene, upload(scene), shadows=True, spp=1, texture_filter=texture_filter)
+    assert features.texture_filter == texture_filter and not features.second_uv_set
+    cam = pw.Camera.look_at(eye=(0.5, 1.5, 4.0), target=(0, -0.3, 0))
+    special = render_checked(scene, cam, size=(64, 48), visibility="raycast", texture_filter=texture_filter)
+    general = render_checked(scene, cam, size=(64, 48), specialize=False, texture_filter=texture_filter)
+    np.testing.assert_allclose(special.rgb, general.rgb, rtol=1e-6, atol=1e-30)
+    source = generated_source(render_kernel(features))
+    assert "sample_texture" in source
+    for footprint_code in ("mip_lod", "uv_footprint", "sample_texture_lod"):
+        assert (footprint_code in source) == (texture_filter == "trilinear"), footprint_code
 
 
 def test_explain_says_what_and_why():

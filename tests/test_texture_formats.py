@@ -16,6 +16,7 @@ import pytest
 from PIL import Image
 
 import pbrwarp as pw
+from pbrwarp import textures
 from pbrwarp.textures import image_to_float_rgba
 
 LUX = 3.0
@@ -266,8 +267,9 @@ def uploaded_texels(material):
 
 
 def test_8bit_images_stay_8bit_once_however_many_slots_use_them():
-    """Stored as uploaded: 4 bytes a texel, one copy for an sRGB slot and a linear slot alike
-    (the kernel decodes each as its slot asks)."""
+    """Stored as uploaded: 4 bytes a texel, level 0 once for an sRGB slot and a linear slot alike
+    (the kernel decodes each as its slot asks); each slot's mip levels past it follow (8-bit too,
+    averaged in linear space as the slot decodes them)."""
     from pbrwarp.kernels.textures import TEXELS_SRGB8, TEXELS_UNORM8
 
     texture = pw.Texture(RNG.integers(0, 256, (64, 32, 3), dtype=np.uint8))
@@ -276,8 +278,10 @@ def test_8bit_images_stay_8bit_once_however_many_slots_use_them():
     rows = data.textures.numpy()
     assert sorted(rows["texel_format"].tolist()) == [TEXELS_UNORM8, TEXELS_SRGB8]
     assert rows["offset"].tolist() == [0, 0]
-    assert data.texels.unorm8.shape == (64 * 32,) and data.texels.floats.shape == (1,)  # one unused float texel
-    np.testing.assert_array_equal(data.texels.unorm8.numpy(), texture.rgba8.reshape(-1, 4))
+    levels = 32 * 16 + 16 * 8 + 8 * 4 + 4 * 2 + 2 * 1 + 1 * 1  # 64 x 32 halved down to 1 x 1
+    assert data.texels.unorm8.shape == (64 * 32 + 2 * levels,) and data.texels.floats.shape == (1,)  # one unused float texel
+    np.testing.assert_array_equal(data.texels.unorm8.numpy()[:64 * 32], texture.rgba8.reshape(-1, 4))
+    assert sorted(rows["mip_offset"].tolist()) == [64 * 32, 64 * 32 + levels]
 
 
 def test_16bit_and_float_images_keep_linear_float_texels():
@@ -286,8 +290,8 @@ def test_16bit_and_float_images_keep_linear_float_texels():
         assert texture.rgba8 is None
         data = uploaded_texels(white_lambert(base_color_texture=texture))
         h, w = texture.shape
-        assert data.texels.floats.shape == (h * w,) and data.texels.unorm8.shape == (1,)
-        np.testing.assert_array_equal(data.texels.floats.numpy(), texture.texels(True).reshape(-1, 4))
+        assert data.texels.floats.shape == (textures.mip_texel_count(h, w)[1],) and data.texels.unorm8.shape == (1,)
+        np.testing.assert_array_equal(data.texels.floats.numpy()[:h * w], texture.texels(True).reshape(-1, 4))
 
 
 def test_read_only_rgba_images_are_kept_without_a_copy():
