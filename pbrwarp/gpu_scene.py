@@ -79,19 +79,30 @@ class GpuScene:
         return self._keep[0].clusters
 
 
+def _tangent_uv_set(prim) -> int | None:
+    """The uv set (0 or 1) from which ``prim``'s tangent frame is generated, or None when it needs
+    none (it has its own tangents, or nothing reads a frame: no normal map, no anisotropy). The
+    material decides, so the geometry cache is keyed by it too."""
+    material = prim.material
+    if prim.tangents is not None or prim.uvs is None:
+        return None
+    if material.normal_texture is None and material.anisotropy_strength == 0.0:
+        return None
+    # the frame follows the uv set the normal map (else the anisotropy map) is read with
+    mapped = material.normal_texture or material.anisotropy_texture
+    return 1 if mapped is not None and mapped.texcoord == 1 and prim.uvs1 is not None else 0
+
+
 def _primitive_tangents(prim):
     if prim.tangents is not None:
         return prim.tangents
-    needs_frame = prim.material.normal_texture is not None or prim.material.anisotropy_strength > 0.0
-    if not needs_frame or prim.uvs is None:
+    uv_set = _tangent_uv_set(prim)
+    if uv_set is None:
         return np.zeros((len(prim.positions), 4))
     from .tangents import generate_tangents
 
     normals = prim.normals if prim.normals is not None else np.zeros_like(prim.positions)
-    # the tangent frame follows the uv set the normal map (else the anisotropy map) is read with
-    mapped = prim.material.normal_texture or prim.material.anisotropy_texture
-    uvs = prim.uvs1 if mapped is not None and mapped.texcoord == 1 and prim.uvs1 is not None else prim.uvs
-    return generate_tangents(prim.positions, normals, uvs, prim.faces)
+    return generate_tangents(prim.positions, normals, prim.uvs1 if uv_set == 1 else prim.uvs, prim.faces)
 
 
 def _build_geometry(prims) -> _Geometry:
@@ -280,7 +291,7 @@ def upload(scene) -> GpuScene:
     cache = scene.cache
     # primitives and textures compare by identity and revision (a field set anew rebuilds what
     # depends on it), and the keys keep them alive
-    geo_key = tuple(validate.revision(p) for p in prims)
+    geo_key = tuple((validate.revision(p), _tangent_uv_set(p)) for p in prims)
     geometry = cache.get("geometry", geo_key, lambda: _build_geometry(prims))
     tex_key = tuple((validate.revision(tex), srgb) for p in prims if p.uvs is not None
                     for _, tex, srgb in p.material.textures())

@@ -303,3 +303,16 @@ def test_anisotropy_strength_board_stretches_highlights_with_strength():
     assert len(strengths) >= 3 and max(strengths) > 0.5
     image = np.asarray(pw.render(scene, pw.Camera.frame(scene), width=64, height=48).rgb)
     assert np.isfinite(image).all()
+
+
+def test_anisotropy_set_after_a_render_gets_its_tangent_frame():
+    """A mesh without tangents gets them generated only when a material reads a frame: setting
+    anisotropy on after a render rebuilds the cached geometry with them."""
+    scene = pw.Scene()
+    material = pw.Material(base_color=(1, 1, 1), metallic=1.0, roughness=0.15)
+    scene.add_mesh(plane(), material)
+    scene.add_light(pw.PointLight(position=(0, 0, 1.0), intensity=5.0))
+    pw.render(scene, CAMERA, width=96, height=96)
+    material.anisotropy_strength = 0.8
+    again = np.asarray(pw.render(scene, CAMERA, width=96, height=96).rgb, np.float64)[..., 0]
+    np.testing.assert_array_equal(again, highlight(anisotropy_strength=0.8))
