@@ -33,6 +33,13 @@ class MaterialData:
     alpha_mask: int
     # 1 for an unlit material (KHR_materials_unlit): its radiance is its base colour, lights ignored
     unlit: int
+    # KHR_materials_clearcoat: the coat's intensity, perceptual roughness and normal-map scale
+    clearcoat: float
+    clearcoat_roughness: float
+    clearcoat_normal_scale: float
+    # KHR_materials_sheen: the sheen's linear colour and perceptual roughness
+    sheen_color: wp.vec3
+    sheen_roughness: float
     # indices into SceneData.textures, NO_TEXTURE when the slot is empty
     base_color_texture: int
     metallic_roughness_texture: int
@@ -41,6 +48,11 @@ class MaterialData:
     occlusion_texture: int
     specular_texture: int
     specular_color_texture: int
+    clearcoat_texture: int
+    clearcoat_roughness_texture: int
+    clearcoat_normal_texture: int
+    sheen_color_texture: int
+    sheen_roughness_texture: int
 
 
 @wp.struct

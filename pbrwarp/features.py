@@ -41,6 +41,12 @@ class Features:
     emission: bool = True
     # KHR_materials_unlit: materials whose radiance is their base colour
     unlit: bool = True
+    # KHR_materials_clearcoat: a coat layer, and its textures (intensity, roughness, normal map)
+    clearcoat: bool = True
+    clearcoat_textures: bool = True
+    # KHR_materials_sheen: a Charlie sheen layer, and its colour and roughness textures
+    sheen: bool = True
+    sheen_textures: bool = True
     diffuse: bool = True
     specular: bool = True
     point_lights: bool = True
@@ -68,7 +74,8 @@ class Features:
     @property
     def textures(self) -> bool:
         return (self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture
-                or self.normal_mapping or self.specular_texture or self.specular_color_texture)
+                or self.normal_mapping or self.specular_texture or self.specular_color_texture
+                or self.clearcoat_textures or self.sheen_textures)
 
     @classmethod
     def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), shadows="rays", ibl: IBL = IBL(),
@@ -224,6 +231,24 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
         add(name, present, why)
     present, why = slot("normal_texture", "normal map")
     add("normal_mapping", present, why + ("" if present else ": no tangent frames"))
+    coated = sum(1 for m in lit_mats if m.clearcoat > 0.0)
+    add("clearcoat", coated, f"clear coat (KHR_materials_clearcoat): {_count(coated, 'material')}" if coated
+        else "no clear coat: every clearcoat factor is 0")
+    sheened = sum(1 for m in lit_mats if max(m.sheen_color) > 0.0)
+    if sheened and not (scene.lights or environment):
+        add("sheen", False, "no sheen: no lights")
+    else:
+        add("sheen", sheened, f"sheen (KHR_materials_sheen): {_count(sheened, 'material')}" if sheened
+            else "no sheen: every sheen colour is black")
+    for name, layer, slots in (("clearcoat_textures", "clearcoat", ("clearcoat_texture", "clearcoat_roughness_texture",
+                                                                     "clearcoat_normal_texture")),
+                               ("sheen_textures", "sheen", ("sheen_color_texture", "sheen_roughness_texture"))):
+        users = sum(1 for r in rows if any(getattr(r, s) >= 0 for s in slots))
+        label = name.replace("_", " ")
+        if users and not next(d.present for d in decisions if d.name == layer):
+            add(name, False, f"no {label} read: no {layer} layer")
+        else:
+            add(name, users, f"{label}: {users} of {len(rows)} meshes" if users else f"no {label}")
     unlit = sum(1 for m in mats if m.unlit)
     add("unlit", unlit, f"unlit (KHR_materials_unlit): {_count(unlit, 'material')} show their base colour"
         if unlit else "no unlit materials")

@@ -14,11 +14,11 @@ graph's own transforms (the pose a viewer shows before any animation plays);
 EXT_mesh_gpu_instancing, whose instances are expanded into copies; PNG and JPEG textures (and
 WebP, GIF, BMP, TGA); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
 with alphaMode OPAQUE and MASK; KHR_texture_transform, KHR_materials_specular,
-KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_lights_punctual
-(but ``range``); perspective cameras.
+KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_materials_clearcoat,
+KHR_materials_sheen, KHR_lights_punctual (but ``range``); perspective cameras.
 
-Everything else a file asks for is named in a warning at load, once per kind ("KHR_materials_sheen
-on 3 materials ('cloth', ...) ignored: rendered without sheen"), saying what is rendered instead,
+Everything else a file asks for is named in a warning at load, once per kind
+("KHR_materials_transmission on 3 materials ('glass', ...) ignored: rendered opaque"), saying what is rendered instead,
 and kept in ``GltfContent.load_warnings`` (``Scene.load_warnings``, listed by ``pw.explain``): the
 extensions ``_EXTENSIONS`` marks IGNORED and unknown ones, TEXCOORD_1 and above (sampled as
 TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification, light ``range``,
@@ -779,7 +779,8 @@ class _Builder:
             material = self.materials.get(data.material, data.where)
         normals = data.normals if data.normals is not None else np.zeros_like(data.positions)
         tangents = data.tangents
-        if tangents is None and material.normal_texture is not None and data.uvs is not None:
+        normal_mapped = material.normal_texture is not None or material.clearcoat_normal_texture is not None
+        if tangents is None and normal_mapped and data.uvs is not None:
             tangents = generate_tangents(data.positions, normals, data.uvs, data.faces)
         try:
             return Primitive(data.positions, data.faces, material, normals, data.uvs, tangents, data.colors)
@@ -799,6 +800,11 @@ class _Materials:
         (("emissiveTexture",), "emissive_texture"),
         (("extensions", "KHR_materials_specular", "specularTexture"), "specular_texture"),
         (("extensions", "KHR_materials_specular", "specularColorTexture"), "specular_color_texture"),
+        (("extensions", "KHR_materials_clearcoat", "clearcoatTexture"), "clearcoat_texture"),
+        (("extensions", "KHR_materials_clearcoat", "clearcoatRoughnessTexture"), "clearcoat_roughness_texture"),
+        (("extensions", "KHR_materials_clearcoat", "clearcoatNormalTexture"), "clearcoat_normal_texture"),
+        (("extensions", "KHR_materials_sheen", "sheenColorTexture"), "sheen_color_texture"),
+        (("extensions", "KHR_materials_sheen", "sheenRoughnessTexture"), "sheen_roughness_texture"),
     )
 
     def __init__(self, doc: _Document):
@@ -820,6 +826,8 @@ class _Materials:
         pbr = spec.get("pbrMetallicRoughness", {})
         ext = spec.get("extensions", {})
         emissive_strength = ext.get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
+        coat = ext.get("KHR_materials_clearcoat", {})
+        sheen = ext.get("KHR_materials_sheen", {})
         textures = {}
         for location, slot in self._SLOTS:
             info = spec
@@ -840,6 +848,11 @@ class _Materials:
             alpha_mode=spec.get("alphaMode", "OPAQUE"),
             alpha_cutoff=spec.get("alphaCutoff", 0.5),
             unlit="KHR_materials_unlit" in ext,
+            clearcoat=coat.get("clearcoatFactor", 0.0),
+            clearcoat_roughness=coat.get("clearcoatRoughnessFactor", 0.0),
+            clearcoat_normal_scale=coat.get("clearcoatNormalTexture", {}).get("scale", 1.0),
+            sheen_color=sheen.get("sheenColorFactor", (0.0, 0.0, 0.0)),
+            sheen_roughness=sheen.get("sheenRoughnessFactor", 0.0),
             name=spec.get("name", ""),
             **textures,
         )

@@ -35,7 +35,7 @@ _EXTENSIONS = {
     "KHR_animation_pointer": (IGNORED, "its animations are not played; the stored values are shown"),
     "KHR_draco_mesh_compression": (IGNORED, "the primitives' uncompressed fallback data is read instead"),
     "KHR_materials_anisotropy": (IGNORED, "rendered with isotropic highlights"),
-    "KHR_materials_clearcoat": (IGNORED, "rendered without the clear coat"),
+    "KHR_materials_clearcoat": (HONOURED, ""),
     "KHR_materials_diffuse_transmission": (IGNORED, "rendered opaque (no light passes through)"),
     "KHR_materials_dispersion": (IGNORED, "rendered without dispersion"),
     "KHR_materials_iridescence": (IGNORED, "rendered without the thin-film colours"),

@@ -80,7 +80,8 @@ class GpuScene:
 def _primitive_tangents(prim):
     if prim.tangents is not None:
         return prim.tangents
-    if prim.material.normal_texture is None or prim.uvs is None:
+    normal_maps = (prim.material.normal_texture, prim.material.clearcoat_normal_texture)
+    if all(m is None for m in normal_maps) or prim.uvs is None:
         return np.zeros((len(prim.positions), 4))
     from .tangents import generate_tangents
 
@@ -192,6 +193,10 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
         row.ior_kappa = _float32_vector(mat.complex_ior[1], "Material.complex_ior k")
     row.alpha_mask = int(mat.alpha_mode == "MASK")
     row.unlit = int(mat.unlit)
+    row.clearcoat, row.clearcoat_roughness = mat.clearcoat, mat.clearcoat_roughness
+    row.clearcoat_normal_scale = mat.clearcoat_normal_scale
+    row.sheen_color = _float32_vector(mat.sheen_color, "Material.sheen_color")
+    row.sheen_roughness = mat.sheen_roughness
     slot_index = {slot: texture_slots[(id(tex), srgb)] if has_uvs else -1 for slot, tex, srgb in mat.textures()}
     row.base_color_texture = slot_index.get("base_color_texture", -1)
     row.metallic_roughness_texture = slot_index.get("metallic_roughness_texture", -1)
@@ -200,6 +205,11 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.occlusion_texture = slot_index.get("occlusion_texture", -1)
     row.specular_texture = slot_index.get("specular_texture", -1)
     row.specular_color_texture = slot_index.get("specular_color_texture", -1)
+    row.clearcoat_texture = slot_index.get("clearcoat_texture", -1)
+    row.clearcoat_roughness_texture = slot_index.get("clearcoat_roughness_texture", -1)
+    row.clearcoat_normal_texture = slot_index.get("clearcoat_normal_texture", -1)
+    row.sheen_color_texture = slot_index.get("sheen_color_texture", -1)
+    row.sheen_roughness_texture = slot_index.get("sheen_roughness_texture", -1)
     row.occlusion_strength = mat.occlusion_strength
     return row
 
