@@ -22,6 +22,7 @@ from .robust import RAY_FAR, clamp_to_float32_max, SHADOW_RAY_SHORTENING, offset
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
+from .sheen import Sheen, sheen_for
 from .work_queue import read_counter, take_next_item_from
 from .surface import MAX_PASS_THROUGH, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
 from .visibility_buffer import visible_triangle
@@ -58,6 +59,8 @@ def render_kernel(features):
     hit_uv, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion)
     coat_at, _, clearcoat_brdf, clearcoat_environment = clearcoat_for(f.brdf.distribution, f.brdf.geometry,
                                                                       f.brdf.fresnel, f.clearcoat_textures)
+    if f.sheen:  # (its albedo table is integrated on first use)
+        sheen_at, _, sheen_brdf, sheen_scaling, sheen_environment, _ = sheen_for(f.sheen_textures)
 
     @wp.func
     def is_culled(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
@@ -122,6 +125,9 @@ def render_kernel(features):
             if wp.static(f.specular_color_texture):
                 sc = texture_or_one(scene, mat.specular_color_texture, uv)
                 f0_dielectric = wp.cw_mul(f0_dielectric, wp.vec3(sc[0], sc[1], sc[2]))
+            sheen = Sheen()
+            if wp.static(f.sheen):
+                sheen = sheen_at(scene, mat, uv, n, view)
             for i in range(scene.num_lights):
                 ls = sample_light(scene.lights[i], h.p)
                 # light below the geometric surface: shading normals must not leak it through
@@ -157,6 +163,8 @@ def render_kernel(features):
                 else:
                     fr = brdf(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
                               mat.ior_kappa, f0_dielectric)
+                if wp.static(f.sheen):  # KHR_materials_sheen's albedo scaling
+                    fr = fr * sheen_scaling(sheen, ls.to_light) + sheen_brdf(sheen, view, ls.to_light)
                 radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
                 if wp.static(f.clearcoat):
                     coat_radiance = coat_radiance + ls.irradiance * (clearcoat_brdf(coat, view, ls.to_light)
@@ -165,6 +173,8 @@ def render_kernel(features):
                 from_environment = ambient(scene, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
                                            roughness, specular, mat.ior_eta, mat.ior_kappa, f0_dielectric, seed,
                                            stream)
+                if wp.static(f.sheen):
+                    from_environment = sheen_environment(env, sheen, from_environment)
                 coat_from_environment = wp.vec3(0.0)
                 if wp.static(f.clearcoat):
                     coat_from_environment = clearcoat_environment(env, dfg, coat, view)

@@ -40,7 +40,7 @@ _EXTENSIONS = {
     "KHR_materials_dispersion": (IGNORED, "rendered without dispersion"),
     "KHR_materials_iridescence": (IGNORED, "rendered without the thin-film colours"),
     "KHR_materials_pbrSpecularGlossiness": (IGNORED, "rendered with the material's metallic-roughness values"),
-    "KHR_materials_sheen": (IGNORED, "rendered without sheen (fabrics look darker than they should)"),
+    "KHR_materials_sheen": (HONOURED, ""),
     "KHR_materials_transmission": (IGNORED, "rendered opaque (nothing shows through)"),
     "KHR_materials_unlit": (HONOURED, ""),
     "KHR_materials_variants": (IGNORED, "each primitive shows its default material"),

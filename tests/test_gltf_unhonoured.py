@@ -276,7 +276,7 @@ BOARD_NOTES = {
     "EmissiveStrengthTest": [], "IridescenceSuzanne": AssetFormatError,
     "MeshPrimitiveModes": ["points", "lines", "line loops", "line strips"],
     "MorphPrimitivesTest": [], "MultiUVTest": ["TEXCOORD_1"],
-    "RecursiveSkeletons": ["animation"], "SheenCloth": ["KHR_materials_sheen"],
+    "RecursiveSkeletons": ["animation"], "SheenCloth": [],
     "SimpleSkin": ["animation"], "SimpleSparseAccessor": [], "SpecularTest": [],
     "TextureTransformMultiTest": ["TEXCOORD_1"],
     "TransmissionRoughnessTest": ["KHR_materials_transmission", "KHR_materials_volume"],
