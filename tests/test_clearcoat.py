@@ -8,6 +8,7 @@ import trimesh
 import warp as wp
 
 import pbrwarp as pw
+from pbrwarp.errors import AssetFormatError
 from pbrwarp.features import scene_features
 from pbrwarp.gltf import load_gltf
 from pbrwarp.gpu_scene import upload
@@ -314,3 +315,14 @@ def test_clearcoat_board_combines_both_columns_highlights():
     body = (coat_only < 0.01 * coat_only.max()) & (base > 0.1 * base.max())
     assert 0.9 < np.median(coated[body] / base[body]) < 0.97
     np.testing.assert_allclose(coated.sum(), 0.96 * base.sum() + coat_only.sum(), rtol=0.03)
+
+
+@pytest.mark.parametrize("body,field", [({"clearcoatFactor": 2.0}, "clearcoat"),
+                                        ({"clearcoatRoughnessFactor": -0.5}, "clearcoat_roughness"),
+                                        ({"clearcoatFactor": "full"}, "clearcoat")])
+def test_out_of_range_clearcoat_values_are_refused_with_their_name(tmp_path, body, field):
+    b = Builder()
+    b.json["materials"] = [{"extensions": {"KHR_materials_clearcoat": body}}]
+    b.node(mesh=b.quad(material=0))
+    with pytest.raises(AssetFormatError, match=f"Material.{field}"):
+        load_gltf(b.glb(tmp_path / "bad.glb"))

@@ -10,6 +10,7 @@ import trimesh
 import warp as wp
 
 import pbrwarp as pw
+from pbrwarp.errors import AssetFormatError
 from pbrwarp.features import scene_features
 from pbrwarp.gltf import load_gltf
 from pbrwarp.gpu_scene import upload
@@ -279,3 +280,13 @@ def test_sheen_cloth_brightens_at_grazing_angles():
     to_eye = -np.asarray(cam.forward, float)
     facing = np.abs(with_sheen.normal[covered] @ to_eye)
     assert np.median(gain[facing < 0.3]) > np.median(gain[facing > 0.8])
+
+
+@pytest.mark.parametrize("body,field", [({"sheenColorFactor": [1.5, 0.0, 0.0]}, "sheen_color"),
+                                        ({"sheenRoughnessFactor": 3.0}, "sheen_roughness")])
+def test_out_of_range_sheen_values_are_refused_with_their_name(tmp_path, body, field):
+    b = Builder()
+    b.json["materials"] = [{"extensions": {"KHR_materials_sheen": body}}]
+    b.node(mesh=b.quad(material=0))
+    with pytest.raises(AssetFormatError, match=f"Material.{field}"):
+        load_gltf(b.glb(tmp_path / "bad.glb"))
