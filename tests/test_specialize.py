@@ -62,7 +62,8 @@ def scenes():
                                                                  base_color=(0.5, 0.5, 0.5, 0.6)))
     return [
         ("bare convex", sphere_scene(pw.Material(), [DIRECTIONAL]),
-         {"shadows", "base_color_texture", "normal_mapping", "emission", "point_lights", "spot_lights", "pass_through"}),
+         {"shadows", "base_color_texture", "normal_mapping", "emission", "point_lights", "spot_lights", "pass_through",
+          "clearcoat", "sheen"}),
         ("all metal", sphere_scene(pw.Material(metallic=1.0, roughness=0.3), [POINT]), {"diffuse", "directional_lights"}),
         ("pure lambert", sphere_scene(pw.Material(specular=0.0), [SPOT]), {"specular"}),
         ("no lights", sphere_scene(pw.Material(emissive=(0.5, 0.2, 0.1)), []), {"diffuse", "specular", "shadows"}),
@@ -71,6 +72,10 @@ def scenes():
         ("specular textures", sphere_scene(specular_textured_material(), [POINT], uv_sphere()),
          {"base_color_texture", "metallic_roughness_texture", "emissive_texture", "normal_mapping"}),
         ("shadows", floor_and_sphere, {"directional_lights", "normal_mapping"}),
+        ("coat over sheen", sphere_scene(pw.Material(base_color=(0.5, 0.1, 0.1), roughness=0.7, clearcoat=0.8,
+                                                     clearcoat_roughness=0.1, sheen_color=(0.6, 0.6, 0.9),
+                                                     sheen_roughness=0.4), [POINT, DIRECTIONAL]),
+         {"spot_lights", "clearcoat_textures", "sheen_textures", "base_color_texture"}),
         ("everything", mixed, set()),
     ]
 
