@@ -165,7 +165,7 @@ ENERGY_MODELS = ("single", "multiscatter")
 # "microfacet" is Cook-Torrance with the rungs above; the others are the legacy, non-PBR
 # baselines it is usually contrasted with, Lambert plus a normalized (Blinn-)Phong lobe.
 MODELS = ("microfacet", "phong", "blinn_phong")
-_FRESNEL = {"none": F_None, "schlick": F_Schlick, "spherical_gaussian": F_SphericalGaussian, "exact": F_Exact}
+FRESNEL_TERMS = {"none": F_None, "schlick": F_Schlick, "spherical_gaussian": F_SphericalGaussian, "exact": F_Exact}
 
 
 COUPLING_MODELS = ("albedo", "fresnel", "none")
@@ -339,7 +339,7 @@ def _microfacet_brdf(diffuse_lobe: bool, specular_lobe: bool, diffuse: str, dist
                      iridescent: bool):
     """(brdf, brdf_scaled, diffuse_share_scale) of a microfacet rung set (see brdf_for and
     albedo_coupled_brdf_for)."""
-    fresnel_term = _FRESNEL[fresnel]
+    fresnel_term = FRESNEL_TERMS[fresnel]
     exact_fresnel = fresnel == "exact"
     gltf_mix = metallic_mix == "gltf"
     visibility = visibility_for(geometry)

@@ -81,11 +81,11 @@ def dfg_table(size: int = DFG_TABLE_SIZE, samples: int = DFG_SAMPLES) -> wp.arra
         pass
     out = wp.zeros((size, size), dtype=wp.vec2, device="cpu")
     wp.launch(integrate_dfg, dim=(size, size), device="cpu", inputs=[samples, out])
-    _save_atomically(path, out.numpy())
+    save_atomically(path, out.numpy())
     return out
 
 
-def _save_atomically(path: str, table: np.ndarray) -> None:
+def save_atomically(path: str, table: np.ndarray) -> None:
     """Write ``table`` where concurrent readers see the whole file or none (a read-only cache dir
     is not an error: the table is then recomputed by every process)."""
     try:

@@ -12,6 +12,7 @@ from .anisotropy import anisotropy_direction
 from .brdf import albedo_coupled_brdf_for, brdf_for
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
+from .clearcoat import Coat, clearcoat_for
 from .light_buffer import LightBuffers
 from .light_buffer_query import (OCCLUDED, SHADOW_CACHE_LIGHTS, UNDECIDED, ShadowCache, light_buffer_occlusion,
                                  ray_leaves_clear, segment_meets_triangle)
@@ -22,6 +23,7 @@ from .robust import RAY_FAR, clamp_to_float32_max, SHADOW_RAY_SHORTENING, offset
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
+from .sheen import Sheen, sheen_for
 from .work_queue import read_counter, take_next_item_from
 from .surface import MAX_PASS_THROUGH, SurfaceHit, interpolate, surface_hit, surface_tests
 from .texture_coords import SurfaceUV, texture_lookups
@@ -62,6 +64,11 @@ def render_kernel(features):
     # the pixel footprint (ray differentials) is computed only for trilinear filtering
     footprint = textured and f.texture_filter == "trilinear"
     hit_texcoords, texture = texture_lookups(textured, footprint, f.second_uv_set)
+    coat_at, _, clearcoat_brdf, clearcoat_environment = clearcoat_for(
+        f.brdf.distribution, f.brdf.geometry, f.brdf.fresnel, texture if f.clearcoat_textures else None)
+    if f.sheen:  # (its albedo table is integrated on first use)
+        sheen_at, _, sheen_brdf, sheen_scaling, sheen_environment, _ = sheen_for(
+            texture if f.sheen_textures else None)
 
     @wp.func
     def is_culled(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
@@ -139,6 +146,14 @@ def render_kernel(features):
             if mat.unlit != 0:  # KHR_materials_unlit: the base colour, in nits, and nothing else
                 return base_color_at(scene, h, mat, uv), cache, scale, scale_material
         radiance = wp.vec3(0.0)
+        coat = Coat()
+        coat_radiance = wp.vec3(0.0)  # reflected by the clear coat, over the rest (with emission)
+        if wp.static(f.clearcoat):
+            coat_normal_map = NO_TEXTURE
+            if wp.static(f.clearcoat_textures):
+                coat_normal_map = mat.clearcoat_normal_texture
+            coat = coat_at(scene, mat, uv, oriented_normal(scene, h, uv, coat_normal_map, mat.clearcoat_normal_scale),
+                           view)
         if wp.static(f.emission):
             radiance = mat.emissive
             if wp.static(f.emissive_texture):
@@ -166,6 +181,9 @@ def render_kernel(features):
             thin_film = wp.vec3(0.0)
             if wp.static(f.iridescence):
                 thin_film = thin_film_at(scene, mat, uv)
+            sheen = Sheen()
+            if wp.static(f.sheen):
+                sheen = sheen_at(scene, mat, uv, n, view)
             for i in range(scene.num_lights):
                 ls = sample_light(scene.lights[i], h.p)
                 # light below the geometric surface: shading normals must not leak it through
@@ -201,16 +219,31 @@ def render_kernel(features):
                 else:
                     fr = brdf(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
                               mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film)
+                if wp.static(f.sheen):  # KHR_materials_sheen's albedo scaling
+                    fr = fr * sheen_scaling(sheen, ls.to_light) + sheen_brdf(sheen, view, ls.to_light)
                 radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
+                if wp.static(f.clearcoat):
+                    coat_radiance = coat_radiance + ls.irradiance * (clearcoat_brdf(coat, view, ls.to_light)
+                                                                     * wp.dot(coat.normal, ls.to_light) * unshadowed)
             if wp.static(bool(ibl)):
                 from_environment = ambient(scene, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
                                            roughness, specular, mat.ior_eta, mat.ior_kappa, f0_dielectric, seed,
                                            stream, aniso_t, anisotropy, thin_film)
+                if wp.static(f.sheen):
+                    from_environment = sheen_environment(env, sheen, from_environment)
+                coat_from_environment = wp.vec3(0.0)
+                if wp.static(f.clearcoat):
+                    coat_from_environment = clearcoat_environment(env, dfg, coat, view)
                 if wp.static(f.occlusion_texture):
                     if mat.occlusion_texture != NO_TEXTURE:
                         occlusion = texture(scene, mat.occlusion_texture, uv)[0]
-                        from_environment = from_environment * (1.0 + mat.occlusion_strength * (occlusion - 1.0))
+                        visible = 1.0 + mat.occlusion_strength * (occlusion - 1.0)
+                        from_environment = from_environment * visible
+                        coat_from_environment = coat_from_environment * visible
                 radiance = radiance + from_environment
+                coat_radiance = coat_radiance + coat_from_environment
+        if wp.static(f.clearcoat):
+            radiance = radiance * (1.0 - coat.weight) + coat_radiance  # KHR_materials_clearcoat's fresnel_coat
         if wp.static(not scale_per_material):
             scale_material = -1  # the next hit's inputs may differ
         return radiance, cache, scale, scale_material
@@ -253,19 +286,28 @@ def render_kernel(features):
         return verdict == OCCLUDED, blocker
 
     @wp.func
-    def shading_normal(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV) -> wp.vec3:
-        """Interpolated (and normal-mapped) normal, turned to the side the ray came from."""
+    def oriented_normal(scene: SceneData, h: SurfaceHit, uv: SurfaceUV, normal_map: int, scale: float) -> wp.vec3:
+        """Interpolated normal, perturbed by texture ``normal_map`` (unless NO_TEXTURE) with
+        ``scale``, turned to the side the ray came from."""
         front_ng = h.ng
         if h.back_face == 1:
             front_ng = -h.ng
         n = safe_normalize(interpolate(scene.normals, h), front_ng)
-        if wp.static(f.normal_mapping):
-            if mat.normal_texture != NO_TEXTURE:
-                texel = texture(scene, mat.normal_texture, uv)
-                n = perturb_normal(n, interpolate(scene.tangents, h), texel, mat.normal_scale)
+        if wp.static(f.normal_mapping or f.clearcoat_textures):
+            if normal_map != NO_TEXTURE:
+                texel = texture(scene, normal_map, uv)
+                n = perturb_normal(n, interpolate(scene.tangents, h), texel, scale)
         if h.back_face == 1:
             n = -n
         return n
+
+    @wp.func
+    def shading_normal(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV) -> wp.vec3:
+        """The material's (normal-mapped) normal, turned to the side the ray came from."""
+        normal_map = NO_TEXTURE
+        if wp.static(f.normal_mapping):
+            normal_map = mat.normal_texture
+        return oriented_normal(scene, h, uv, normal_map, mat.normal_scale)
 
     @wp.func
     def primary_hit(scene: SceneData, seen: int, origin: wp.vec3, d: wp.vec3):

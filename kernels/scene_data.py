@@ -40,6 +40,13 @@ class MaterialData:
     iridescence: float
     iridescence_ior: float
     iridescence_thickness: wp.vec2
+    # KHR_materials_clearcoat: the coat's intensity, perceptual roughness and normal-map scale
+    clearcoat: float
+    clearcoat_roughness: float
+    clearcoat_normal_scale: float
+    # KHR_materials_sheen: the sheen's linear colour and perceptual roughness
+    sheen_color: wp.vec3
+    sheen_roughness: float
     # indices into SceneData.textures, NO_TEXTURE when the slot is empty
     base_color_texture: int
     metallic_roughness_texture: int
@@ -51,6 +58,11 @@ class MaterialData:
     anisotropy_texture: int
     iridescence_texture: int
     iridescence_thickness_texture: int
+    clearcoat_texture: int
+    clearcoat_roughness_texture: int
+    clearcoat_normal_texture: int
+    sheen_color_texture: int
+    sheen_roughness_texture: int
 
 
 @wp.struct

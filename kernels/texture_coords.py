@@ -39,6 +39,13 @@ def uv_footprint(uvs: wp.array(dtype=wp.vec2), h: SurfaceHit, p0: wp.vec3, p1: w
     return uv_derivative(dpdu, dpdv, dp_dx), uv_derivative(dpdu, dpdv, dp_dy)
 
 
+@wp.func
+def no_texture(scene: SceneData, index: int, c: SurfaceUV) -> wp.vec4:
+    """White, the texture of an empty slot: stands in for texture_lookups' ``texture`` where a
+    layer's textures are not compiled in."""
+    return wp.vec4(1.0)
+
+
 @functools.cache
 def texture_lookups(textured: bool, footprint: bool, second_uv_set: bool):
     """(hit_texcoords, texture) for a kernel whose scenes have UVs (``textured``), filtering

@@ -47,6 +47,12 @@ class Features:
     # KHR_materials_iridescence: a thin film's interference colours in the Fresnel terms
     iridescence: bool = True
     iridescence_texture: bool = True
+    # KHR_materials_clearcoat: a coat layer, and its textures (intensity, roughness, normal map)
+    clearcoat: bool = True
+    clearcoat_textures: bool = True
+    # KHR_materials_sheen: a Charlie sheen layer, and its colour and roughness textures
+    sheen: bool = True
+    sheen_textures: bool = True
     diffuse: bool = True
     specular: bool = True
     point_lights: bool = True
@@ -93,9 +99,12 @@ class Features:
 # The Features flags that read textures (each a material slot, or the normal map's).
 TEXTURE_FLAGS = ("base_color_texture", "metallic_roughness_texture", "emissive_texture", "normal_mapping",
                  "specular_texture", "specular_color_texture", "occlusion_texture", "anisotropy_texture",
-                 "iridescence_texture")
+                 "iridescence_texture", "clearcoat_textures", "sheen_textures")
 # Material texture slots whose Features flag has another name.
-_SLOT_FLAGS = {"normal_texture": "normal_mapping"}
+_SLOT_FLAGS = {"normal_texture": "normal_mapping", "iridescence_thickness_texture": "iridescence_texture",
+               "clearcoat_texture": "clearcoat_textures", "clearcoat_roughness_texture": "clearcoat_textures",
+               "clearcoat_normal_texture": "clearcoat_textures", "sheen_color_texture": "sheen_textures",
+               "sheen_roughness_texture": "sheen_textures"}
 TEXTURE_FILTERS = ("trilinear", "bilinear")
 
 
@@ -271,6 +280,24 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     add("iridescence_texture", present, why)
     present, why = slot("normal_texture", "normal map")
     add("normal_mapping", present, why + ("" if present else ": no tangent frames"))
+    coated = sum(1 for m in lit_mats if m.clearcoat > 0.0)
+    add("clearcoat", coated, f"clear coat (KHR_materials_clearcoat): {_count(coated, 'material')}" if coated
+        else "no clear coat: every clearcoat factor is 0")
+    sheened = sum(1 for m in lit_mats if max(m.sheen_color) > 0.0)
+    if sheened and not (scene.lights or environment):
+        add("sheen", False, "no sheen: no lights")
+    else:
+        add("sheen", sheened, f"sheen (KHR_materials_sheen): {_count(sheened, 'material')}" if sheened
+            else "no sheen: every sheen colour is black")
+    for name, layer, slots in (("clearcoat_textures", "clearcoat", ("clearcoat_texture", "clearcoat_roughness_texture",
+                                                                     "clearcoat_normal_texture")),
+                               ("sheen_textures", "sheen", ("sheen_color_texture", "sheen_roughness_texture"))):
+        users = sum(1 for r in rows if any(getattr(r, s) >= 0 for s in slots))
+        label = name.replace("_", " ")
+        if users and not next(d.present for d in decisions if d.name == layer):
+            add(name, False, f"no {label} read: no {layer} layer")
+        else:
+            add(name, users, f"{label}: {users} of {len(rows)} meshes" if users else f"no {label}")
     decisions += _texture_decisions(prims, decisions, texture_filter)
     unlit = sum(1 for m in mats if m.unlit)
     add("unlit", unlit, f"unlit (KHR_materials_unlit): {_count(unlit, 'material')} show their base colour"

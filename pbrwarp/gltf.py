@@ -16,11 +16,12 @@ decoded by DracoPy (the ``draco`` extra; pbrwarp/gltf_draco.py); PNG and JPEG te
 WebP, GIF, BMP, TGA), and KTX2 (KHR_texture_basisu) decoded by opengl-basisu (the ``ktx2`` extra;
 pbrwarp/gltf_basisu.py); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
 with alphaMode OPAQUE and MASK; KHR_texture_transform, KHR_materials_specular,
-KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_lights_punctual
-(with ``range``); perspective cameras.
+KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_materials_clearcoat,
+KHR_materials_sheen, KHR_materials_anisotropy, KHR_materials_iridescence, KHR_lights_punctual (with
+``range``), KHR_node_visibility; perspective cameras.
 
-Everything else a file asks for is named in a warning at load, once per kind ("KHR_materials_sheen
-on 3 materials ('cloth', ...) ignored: rendered without sheen"), saying what is rendered instead,
+Everything else a file asks for is named in a warning at load, once per kind
+("KHR_materials_transmission on 3 materials ('glass', ...) ignored: rendered opaque"), saying what is rendered instead,
 and kept in ``GltfContent.load_warnings`` (``Scene.load_warnings``, listed by ``pw.explain``): the
 extensions ``_EXTENSIONS`` marks IGNORED and unknown ones, TEXCOORD_2 and above (sampled as
 TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification,
@@ -815,9 +816,10 @@ class _Builder:
             self.doc.notes.add("TEXCOORD_1 missing", "TEXCOORD_1 missing on {subjects}: their textures that ask for "
                                "it sampled with TEXCOORD_0 instead", "primitive", data.key,
                                f"{data.key[1]} of mesh {data.key[0]}")
-        if tangents is None and (material.normal_texture is not None or material.anisotropy_strength > 0.0):
-            # the tangent frame follows the uv set the normal map (else the anisotropy map) is read with
-            mapped = material.normal_texture or material.anisotropy_texture
+        normal_mapped = material.normal_texture is not None or material.clearcoat_normal_texture is not None
+        if tangents is None and (normal_mapped or material.anisotropy_strength > 0.0):
+            # the tangent frame follows the uv set the normal map (else the coat's, else the anisotropy map) is read with
+            mapped = material.normal_texture or material.clearcoat_normal_texture or material.anisotropy_texture
             uvs = data.uvs1 if mapped is not None and mapped.texcoord == 1 and data.uvs1 is not None else data.uvs
             if uvs is not None:
                 tangents = generate_tangents(data.positions, normals, uvs, data.faces)
@@ -847,6 +849,11 @@ class _Materials:
         (("extensions", "KHR_materials_anisotropy", "anisotropyTexture"), "anisotropy_texture"),
         (("extensions", "KHR_materials_iridescence", "iridescenceTexture"), "iridescence_texture"),
         (("extensions", "KHR_materials_iridescence", "iridescenceThicknessTexture"), "iridescence_thickness_texture"),
+        (("extensions", "KHR_materials_clearcoat", "clearcoatTexture"), "clearcoat_texture"),
+        (("extensions", "KHR_materials_clearcoat", "clearcoatRoughnessTexture"), "clearcoat_roughness_texture"),
+        (("extensions", "KHR_materials_clearcoat", "clearcoatNormalTexture"), "clearcoat_normal_texture"),
+        (("extensions", "KHR_materials_sheen", "sheenColorTexture"), "sheen_color_texture"),
+        (("extensions", "KHR_materials_sheen", "sheenRoughnessTexture"), "sheen_roughness_texture"),
     )
 
     def __init__(self, doc: _Document):
@@ -869,6 +876,8 @@ class _Materials:
         ext = spec.get("extensions", {})
         emissive_strength = ext.get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
         film = ext.get("KHR_materials_iridescence", {})
+        coat = ext.get("KHR_materials_clearcoat", {})
+        sheen = ext.get("KHR_materials_sheen", {})
         textures = {}
         for location, slot in self._SLOTS:
             info = spec
@@ -895,6 +904,11 @@ class _Materials:
             iridescence_ior=film.get("iridescenceIor", 1.3),
             iridescence_thickness_min=film.get("iridescenceThicknessMinimum", 100.0),
             iridescence_thickness_max=film.get("iridescenceThicknessMaximum", 400.0),
+            clearcoat=coat.get("clearcoatFactor", 0.0),
+            clearcoat_roughness=coat.get("clearcoatRoughnessFactor", 0.0),
+            clearcoat_normal_scale=coat.get("clearcoatNormalTexture", {}).get("scale", 1.0),
+            sheen_color=sheen.get("sheenColorFactor", (0.0, 0.0, 0.0)),
+            sheen_roughness=sheen.get("sheenRoughnessFactor", 0.0),
             name=spec.get("name", ""),
             **textures,
         )

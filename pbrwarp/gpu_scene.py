@@ -81,15 +81,16 @@ class GpuScene:
 
 def _tangent_uv_set(prim) -> int | None:
     """The uv set (0 or 1) from which ``prim``'s tangent frame is generated, or None when it needs
-    none (it has its own tangents, or nothing reads a frame: no normal map, no anisotropy). The
+    none (it has its own tangents, or nothing reads a frame: no normal maps, no anisotropy). The
     material decides, so the geometry cache is keyed by it too."""
     material = prim.material
     if prim.tangents is not None or prim.uvs is None:
         return None
-    if material.normal_texture is None and material.anisotropy_strength == 0.0:
+    if (material.normal_texture is None and material.clearcoat_normal_texture is None
+            and material.anisotropy_strength == 0.0):
         return None
-    # the frame follows the uv set the normal map (else the anisotropy map) is read with
-    mapped = material.normal_texture or material.anisotropy_texture
+    # the frame follows the uv set the normal map (else the coat's, else the anisotropy map) is read with
+    mapped = material.normal_texture or material.clearcoat_normal_texture or material.anisotropy_texture
     return 1 if mapped is not None and mapped.texcoord == 1 and prim.uvs1 is not None else 0
 
 
@@ -239,6 +240,10 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.anisotropy_rotation = wp.vec2(math.cos(mat.anisotropy_rotation), math.sin(mat.anisotropy_rotation))
     row.iridescence, row.iridescence_ior = mat.iridescence, mat.iridescence_ior
     row.iridescence_thickness = wp.vec2(mat.iridescence_thickness_min, mat.iridescence_thickness_max)
+    row.clearcoat, row.clearcoat_roughness = mat.clearcoat, mat.clearcoat_roughness
+    row.clearcoat_normal_scale = mat.clearcoat_normal_scale
+    row.sheen_color = _float32_vector(mat.sheen_color, "Material.sheen_color")
+    row.sheen_roughness = mat.sheen_roughness
     slot_index = {slot: texture_slots[(id(tex), srgb)] if has_uvs else -1 for slot, tex, srgb in mat.textures()}
     row.base_color_texture = slot_index.get("base_color_texture", -1)
     row.metallic_roughness_texture = slot_index.get("metallic_roughness_texture", -1)
@@ -250,6 +255,11 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.anisotropy_texture = slot_index.get("anisotropy_texture", -1)
     row.iridescence_texture = slot_index.get("iridescence_texture", -1)
     row.iridescence_thickness_texture = slot_index.get("iridescence_thickness_texture", -1)
+    row.clearcoat_texture = slot_index.get("clearcoat_texture", -1)
+    row.clearcoat_roughness_texture = slot_index.get("clearcoat_roughness_texture", -1)
+    row.clearcoat_normal_texture = slot_index.get("clearcoat_normal_texture", -1)
+    row.sheen_color_texture = slot_index.get("sheen_color_texture", -1)
+    row.sheen_roughness_texture = slot_index.get("sheen_roughness_texture", -1)
     row.occlusion_strength = mat.occlusion_strength
     return row
 

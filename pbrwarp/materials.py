@@ -20,6 +20,11 @@ TEXTURE_SLOTS = (
     ("anisotropy_texture", False),
     ("iridescence_texture", False),
     ("iridescence_thickness_texture", False),
+    ("clearcoat_texture", False),
+    ("clearcoat_roughness_texture", False),
+    ("clearcoat_normal_texture", False),
+    ("sheen_color_texture", True),
+    ("sheen_roughness_texture", False),
 )
 
 
@@ -89,6 +94,21 @@ class Material(validate.Checked):
       ``iridescence_thickness_max`` (>= 0, default 400), or, with
       ``iridescence_thickness_texture``, mix(``iridescence_thickness_min`` (>= 0, default 100),
       max, its green channel (linear)).
+    - ``clearcoat``: KHR_materials_clearcoat's intensity of a clear coat (IOR 1.5) over the
+      whole material, in [0, 1] (default 0, no coat), times ``clearcoat_texture``'s red channel;
+      ``clearcoat_roughness``: its perceptual roughness, in [0, 1] (default 0), times
+      ``clearcoat_roughness_texture``'s green channel; ``clearcoat_normal_texture`` (tangent-space,
+      as ``normal_texture``) with ``clearcoat_normal_scale`` (finite, default 1): the coat's
+      normal map; without one the coat follows the interpolated normal, not ``normal_texture``.
+      The coat reflects clearcoat F(Nc.v) of the light, F the Fresnel of f0 = 0.04; the material
+      below it, emission included, keeps 1 - clearcoat F(Nc.v) (docs/materials.md). All three
+      textures are linear.
+    - ``sheen_color``: KHR_materials_sheen's colour of a layer of fibres over the material,
+      linear RGB in [0, 1] (default black, no sheen), times ``sheen_color_texture``'s RGB
+      (sRGB-encoded unless the :class:`Texture` says otherwise); ``sheen_roughness``, in [0, 1]
+      (default 0), times ``sheen_roughness_texture``'s alpha (linear): the Charlie sheen of
+      Estevez & Kulla 2017 over the material, which is scaled by 1 - max(sheen_color) E_sheen so
+      that no energy is gained (docs/materials.md).
     - ``name``: for messages (default "").
     - ``complex_ior``: optional ``(n, k)``, the complex index of refraction n + ik of a metal,
       each an RGB triple (n > 0, k >= 0), e.g. from refractiveindex.info at 650, 550 and 450 nm.
@@ -126,6 +146,16 @@ class Material(validate.Checked):
     iridescence_thickness_max: float = 400.0
     iridescence_texture: Texture | None = None
     iridescence_thickness_texture: Texture | None = None
+    clearcoat: float = 0.0
+    clearcoat_roughness: float = 0.0
+    clearcoat_texture: Texture | None = None
+    clearcoat_roughness_texture: Texture | None = None
+    clearcoat_normal_texture: Texture | None = None
+    clearcoat_normal_scale: float = 1.0
+    sheen_color: tuple = (0.0, 0.0, 0.0)
+    sheen_roughness: float = 0.0
+    sheen_color_texture: Texture | None = None
+    sheen_roughness_texture: Texture | None = None
     name: str = field(default="")
     complex_ior: tuple | None = None
 
@@ -149,6 +179,12 @@ class Material(validate.Checked):
         "iridescence_ior": lambda material, value: _film_ior(value),
         "iridescence_thickness_min": lambda material, value: _thickness(value, "Material.iridescence_thickness_min"),
         "iridescence_thickness_max": lambda material, value: _thickness(value, "Material.iridescence_thickness_max"),
+        "clearcoat": lambda material, value: validate.unit_interval(value, "Material.clearcoat"),
+        "clearcoat_roughness": lambda material, value: validate.unit_interval(value, "Material.clearcoat_roughness"),
+        "clearcoat_normal_scale": lambda material, value: validate.finite_scalar(value,
+                                                                                 "Material.clearcoat_normal_scale"),
+        "sheen_color": lambda material, value: _unit_colour(value, "Material.sheen_color"),
+        "sheen_roughness": lambda material, value: validate.unit_interval(value, "Material.sheen_roughness"),
         "complex_ior": lambda material, value: None if value is None else _complex_ior(value),
         **{slot: (lambda material, value, slot=slot: Texture.wrap(value, f"Material.{slot}"))
            for slot, _ in TEXTURE_SLOTS},
@@ -185,6 +221,14 @@ def _base_color(value) -> tuple:
     if len(rgba) == 4 and rgba[3] > 1.0:
         raise InputError(f"Material.base_color alpha must lie in [0, 1], got {rgba[3]}")
     return rgba if len(rgba) == 4 else (*rgba, 1.0)
+
+
+def _unit_colour(value, what: str) -> tuple:
+    """Linear RGB with every component in [0, 1]."""
+    rgb = validate.colour(value, what)
+    if max(rgb) > 1.0:
+        raise InputError(f"{what} components must lie in [0, 1], got {rgb}")
+    return rgb
 
 
 def _ior(value) -> float:

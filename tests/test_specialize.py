@@ -84,7 +84,7 @@ def scenes():
     return [
         ("bare convex", sphere_scene(pw.Material(), [DIRECTIONAL]),
          {"shadows", "base_color_texture", "normal_mapping", "emission", "point_lights", "spot_lights", "pass_through",
-          "texture_filter", "second_uv_set"}),
+          "texture_filter", "second_uv_set", "clearcoat", "sheen"}),
         ("all metal", sphere_scene(pw.Material(metallic=1.0, roughness=0.3), [POINT]), {"diffuse", "directional_lights"}),
         ("pure lambert", sphere_scene(pw.Material(specular=0.0), [SPOT]), {"specular"}),
         ("no lights", sphere_scene(pw.Material(emissive=(0.5, 0.2, 0.1)), []), {"diffuse", "specular", "shadows"}),
@@ -98,6 +98,10 @@ def scenes():
         ("iridescent", sphere_scene(iridescent_material(), [POINT, SPOT], uv_sphere()),
          {"base_color_texture", "anisotropy", "normal_mapping"}),
         ("second uv set", two_sets, {"spot_lights", "specular_texture", "specular_color_texture"}),
+        ("coat over sheen", sphere_scene(pw.Material(base_color=(0.5, 0.1, 0.1), roughness=0.7, clearcoat=0.8,
+                                                     clearcoat_roughness=0.1, sheen_color=(0.6, 0.6, 0.9),
+                                                     sheen_roughness=0.4), [POINT, DIRECTIONAL]),
+         {"spot_lights", "clearcoat_textures", "sheen_textures", "base_color_texture"}),
         ("everything", mixed, set()),
     ]
 

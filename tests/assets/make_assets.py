@@ -50,8 +50,8 @@ MODELS = ["BoxTextured", "Duck", "MetalRoughSpheresNoTextures", "NegativeScaleTe
           "TextureSettingsTest", "TwoSidedPlane", "WaterBottle"]
 # Khronos test boards (one feature each), copied whole: every file of their model folders, their
 # README (what a correct render shows) and LICENSE.md.
-BOARDS = ["AnimatedMorphCube", "Box", "EmissiveStrengthTest", "MeshPrimitiveModes", "MorphPrimitivesTest",
-          "MultiUVTest", "SimpleSkin", "SimpleSparseAccessor", "SpecularTest", "UnlitTest"]
+BOARDS = ["AnimatedMorphCube", "Box", "ClearCoatTest", "EmissiveStrengthTest", "MeshPrimitiveModes",
+          "MorphPrimitivesTest", "MultiUVTest", "SimpleSkin", "SimpleSparseAccessor", "SpecularTest", "UnlitTest"]
 # Binary models whose embedded images are re-encoded, with the largest side kept: the normal maps
 # of the two normal-mapping tests at a quarter, so each bump still spans many texels in a test view.
 GLB_TEXTURES = {"gltf/NormalTangentMirrorTest/glTF-Binary/NormalTangentMirrorTest.glb": 512,
