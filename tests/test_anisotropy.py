@@ -2,7 +2,6 @@
 formulas, their normalization and energy bound, and renders whose highlights stretch along the
 tangent direction the material gives."""
 
-import json
 import warnings
 
 import numpy as np
@@ -16,7 +15,7 @@ from pbrwarp.kernels import brdf as kb
 
 import reference as ref
 from assets import BOARDS, board
-from test_gltf import Builder
+from test_gltf import loaded_material, material_extension_file
 
 N = 4096
 
@@ -274,18 +273,8 @@ def test_anisotropy_under_an_environment(method):
 # ---------------------------------------------------------------------------- glTF
 
 def test_gltf_anisotropy_is_read_without_a_warning(tmp_path):
-    b = Builder()
-    b.node(mesh=b.quad(), name="quad")
-    b.json["textures"] = [{"source": b.image()}]
-    b.json["materials"] = [{"name": "brushed", "extensions": {"KHR_materials_anisotropy": {
-        "anisotropyStrength": 0.6, "anisotropyRotation": 1.25, "anisotropyTexture": {"index": 0}}}}]
-    b.json["extensionsUsed"] = ["KHR_materials_anisotropy"]
-    b.json["meshes"][0]["primitives"][0]["material"] = 0
-    path = b.glb(tmp_path / "brushed.glb")
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        scene = pw.Scene.load(path)
-    material = scene.primitives[0].material
+    material = loaded_material(material_extension_file(tmp_path, "KHR_materials_anisotropy", {
+        "anisotropyStrength": 0.6, "anisotropyRotation": 1.25, "anisotropyTexture": {"index": 0}}))
     assert material.anisotropy_strength == pytest.approx(0.6)
     assert material.anisotropy_rotation == pytest.approx(1.25)
     assert material.anisotropy_texture is not None

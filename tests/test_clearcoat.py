@@ -19,7 +19,7 @@ from pbrwarp.kernels.render import render_kernel
 import reference as ref
 from assets import board
 from scenes import quad, render_checked
-from test_gltf import Builder
+from test_gltf import Builder, loaded_material, material_extension_file
 
 N = 4096
 _, schlick_layer, schlick_coat, _ = clearcoat_for("ggx", "schlick_ggx", "schlick")
@@ -270,23 +270,16 @@ def test_specialized_image_equals_the_all_effects_image(spp):
 
 
 def test_every_clearcoat_property_is_read_from_gltf(tmp_path):
-    b = Builder()
-    image = b.image()
-    b.json["textures"] = [{"source": image}]
-    b.json["materials"] = [{"extensions": {"KHR_materials_clearcoat": {
+    path = material_extension_file(tmp_path, "KHR_materials_clearcoat", {
         "clearcoatFactor": 0.8, "clearcoatRoughnessFactor": 0.25, "clearcoatTexture": {"index": 0},
-        "clearcoatRoughnessTexture": {"index": 0}, "clearcoatNormalTexture": {"index": 0, "scale": 0.5}}}}]
-    b.node(mesh=b.quad(material=0))
-    b.json["extensionsRequired"] = b.json["extensionsUsed"] = ["KHR_materials_clearcoat"]
-    content = load_gltf(b.glb(tmp_path / "coat.glb"))
-    assert content.load_warnings == ()
-    prim, = content.primitives
-    m = prim.material
+        "clearcoatRoughnessTexture": {"index": 0}, "clearcoatNormalTexture": {"index": 0, "scale": 0.5}},
+        required=True)
+    m = loaded_material(path)
     assert (m.clearcoat, m.clearcoat_roughness, m.clearcoat_normal_scale) == (0.8, 0.25, 0.5)
     slots = {slot: srgb for slot, _, srgb in m.textures()}
     assert slots == {"clearcoat_texture": False, "clearcoat_roughness_texture": False,
                      "clearcoat_normal_texture": False}
-    assert prim.tangents is not None  # generated for the coat's normal map
+    assert load_gltf(path).primitives[0].tangents is not None  # generated for the coat's normal map
     plain = Builder()
     plain.json["materials"] = [{}]
     plain.node(mesh=plain.quad(material=0))

@@ -305,6 +305,27 @@ def quarter_turn_about_x():
     return [s, 0.0, 0.0, s]
 
 
+def material_extension_file(tmp_path, extension, body, required=False):
+    """A one-quad .glb (node 'quad') whose material 0 ('mat') has ``extension`` with ``body``;
+    texture 0 is a small image, for the body's textureInfos."""
+    b = Builder()
+    b.json["textures"] = [{"source": b.image()}]
+    b.json["materials"] = [{"name": "mat", "extensions": {extension: body}}]
+    b.node(mesh=b.quad(material=0), name="quad")
+    b.json["extensionsUsed"] = [extension]
+    if required:
+        b.json["extensionsRequired"] = [extension]
+    return b.glb(tmp_path / f"{extension}.glb")
+
+
+def loaded_material(path):
+    """The material of a file's only primitive, the load warning about nothing."""
+    content = load_gltf(path)
+    assert content.load_warnings == ()
+    (prim,) = content.primitives
+    return prim.material
+
+
 def test_lights_on_nodes(tmp_path):
     b = Builder()
     b.node(mesh=b.quad())

@@ -13,7 +13,7 @@ import pbrwarp as pw
 from pbrwarp.kernels import iridescence as ki
 
 from assets import BOARDS, board
-from test_gltf import Builder
+from test_gltf import loaded_material, material_extension_file
 
 XYZ_TO_REC709 = np.array([[3.2404542, -1.5371385, -0.4985314],
                           [-0.9692660, 1.8760108, 0.0415560],
@@ -199,19 +199,9 @@ def test_thickness_texture_blends_between_min_and_max():
 # ---------------------------------------------------------------------------- glTF
 
 def test_gltf_iridescence_is_read_without_a_warning(tmp_path):
-    b = Builder()
-    b.node(mesh=b.quad(), name="quad")
-    b.json["textures"] = [{"source": b.image()}]
-    b.json["materials"] = [{"name": "bubble", "extensions": {"KHR_materials_iridescence": {
+    material = loaded_material(material_extension_file(tmp_path, "KHR_materials_iridescence", {
         "iridescenceFactor": 0.8, "iridescenceIor": 1.4, "iridescenceThicknessMinimum": 150.0,
-        "iridescenceThicknessMaximum": 700.0, "iridescenceThicknessTexture": {"index": 0}}}}]
-    b.json["extensionsUsed"] = b.json["extensionsRequired"] = ["KHR_materials_iridescence"]
-    b.json["meshes"][0]["primitives"][0]["material"] = 0
-    path = b.glb(tmp_path / "bubble.glb")
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        scene = pw.Scene.load(path)
-    material = scene.primitives[0].material
+        "iridescenceThicknessMaximum": 700.0, "iridescenceThicknessTexture": {"index": 0}}, required=True))
     assert (material.iridescence, material.iridescence_ior) == pytest.approx((0.8, 1.4))
     assert (material.iridescence_thickness_min, material.iridescence_thickness_max) == pytest.approx((150.0, 700.0))
     assert material.iridescence_thickness_texture is not None and material.iridescence_texture is None

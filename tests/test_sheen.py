@@ -22,7 +22,7 @@ import reference as ref
 from assets import board
 from scenes import quad, render_checked
 from test_clearcoat import hemisphere_grid, random_directions
-from test_gltf import Builder
+from test_gltf import Builder, loaded_material, material_extension_file
 
 N = 4096
 _, sheen_layer, sheen_brdf, sheen_scaling, _, sheen_albedo = sheen_for()
@@ -234,17 +234,9 @@ def test_specialized_image_equals_the_all_effects_image(spp):
 
 
 def test_every_sheen_property_is_read_from_gltf(tmp_path):
-    b = Builder()
-    image = b.image()
-    b.json["textures"] = [{"source": image}]
-    b.json["materials"] = [{"extensions": {"KHR_materials_sheen": {
+    m = loaded_material(material_extension_file(tmp_path, "KHR_materials_sheen", {
         "sheenColorFactor": [0.9, 0.5, 0.25], "sheenRoughnessFactor": 0.7, "sheenColorTexture": {"index": 0},
-        "sheenRoughnessTexture": {"index": 0}}}}]
-    b.node(mesh=b.quad(material=0))
-    b.json["extensionsUsed"] = ["KHR_materials_sheen"]
-    content = load_gltf(b.glb(tmp_path / "sheen.glb"))
-    assert content.load_warnings == ()
-    m = content.primitives[0].material
+        "sheenRoughnessTexture": {"index": 0}}))
     assert m.sheen_color == (0.9, 0.5, 0.25) and m.sheen_roughness == 0.7
     slots = {slot: srgb for slot, _, srgb in m.textures()}
     assert slots == {"sheen_color_texture": True, "sheen_roughness_texture": False}
