@@ -22,7 +22,7 @@ from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
 from .work_queue import read_counter, take_next_item_from
-from .surface import MAX_PASS_THROUGH, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
+from .surface import MAX_PASS_THROUGH, NEGLIGIBLE_THROUGHPUT, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
 from .visibility_buffer import visible_triangle
 
 wp.set_module_options({"enable_backward": False})
@@ -54,7 +54,7 @@ def render_kernel(features):
     lit = f.point_lights or f.directional_lights or f.spot_lights
     ibl = f.environment
     shaded = lit or bool(ibl)
-    hit_uv, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion)
+    hit_uv, alpha_at, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion)
 
     @wp.func
     def is_culled(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
@@ -234,6 +234,12 @@ def render_kernel(features):
         return q.face, q.u, q.v
 
     @wp.func
+    def next_hit(scene: SceneData, origin: wp.vec3, d: wp.vec3):
+        """(face, u, v) of the nearest surface along a ray leaving a surface, face -1 for none."""
+        q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
+        return wp.where(q.result, q.face, -1), q.u, q.v
+
+    @wp.func
     def render_row(
         scene: SceneData,
         cam: CameraData,
@@ -266,6 +272,7 @@ def render_kernel(features):
             radiance = wp.vec3(0.0)
             normal_sum = wp.vec3(0.0)
             hits = int(0)
+            covered = float(0.0)
             depth = float(RAY_FAR)
             samples = spp
             if wp.static(not f.supersampling):
@@ -285,6 +292,10 @@ def render_kernel(features):
                     offset = multi_jittered_sample(s, grid_m, grid_n, pixel_seed)
                 d = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1])
                 origin = cam.eye
+                # the weight of what lies further along the ray, and the part of the sample no
+                # surface covers (alpha-blended surfaces cover part of it)
+                throughput = wp.vec3(1.0)
+                uncovered = float(1.0)
                 hits_before = hits
                 face, u, v = primary_hit(scene, seen, origin, d)
                 for _ in range(MAX_PASS_THROUGH):
@@ -296,10 +307,7 @@ def render_kernel(features):
                     if wp.static(f.pass_through):
                         if is_culled(scene, h, mat, uv):
                             origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
-                            q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
-                            face = wp.where(q.result, q.face, -1)
-                            u = q.u
-                            v = q.v
+                            face, u, v = next_hit(scene, origin, d)
                             continue
                     n = wp.vec3(0.0)
                     if wp.static(shaded or f.aovs):
@@ -307,17 +315,36 @@ def render_kernel(features):
                     shaded_radiance, cache, scale, scale_material = shade(scene, maps, buffers, env, dfg, h, mat, uv,
                                                                           -d, n, pixel_seed, s, cache, scale,
                                                                           scale_material)
-                    radiance = radiance + shaded_radiance
-                    hits = hits + 1
                     if wp.static(f.aovs):
-                        normal_sum = normal_sum + n
-                        depth = wp.min(depth, wp.length(h.p - cam.eye))
+                        if hits == hits_before:  # the first surface the sample shows
+                            hits = hits + 1
+                            normal_sum = normal_sum + n
+                            depth = wp.min(depth, wp.length(h.p - cam.eye))
+                    if wp.static(f.alpha_blend):
+                        if mat.alpha_blend == 1:
+                            # glTF alphaMode BLEND: alpha is the surface's coverage, composited
+                            # front to back ("over", Porter & Duff 1984)
+                            alpha = wp.clamp(alpha_at(scene, h, mat, uv), 0.0, 1.0)
+                            radiance = radiance + wp.cw_mul(throughput, shaded_radiance) * alpha
+                            throughput = throughput * (1.0 - alpha)
+                            uncovered = uncovered * (1.0 - alpha)
+                            if uncovered <= NEGLIGIBLE_THROUGHPUT:
+                                throughput = wp.vec3(0.0)
+                                uncovered = 0.0
+                                break
+                            origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
+                            face, u, v = next_hit(scene, origin, d)
+                            continue
+                    radiance = radiance + wp.cw_mul(throughput, shaded_radiance)
+                    throughput = wp.vec3(0.0)
+                    uncovered = 0.0
                     break
+                covered = covered + (1.0 - uncovered)
                 if wp.static(f.environment_background):
-                    if hits == hits_before:
-                        radiance = radiance + environment_radiance(env, d)
+                    if throughput[0] + throughput[1] + throughput[2] > 0.0:  # no weight is negative
+                        radiance = radiance + wp.cw_mul(throughput, environment_radiance(env, d))
             inv_spp = 1.0 / float(spp)
-            alpha = float(hits) * inv_spp
+            alpha = covered * inv_spp
             seen_behind = background * (1.0 - alpha)
             if wp.static(f.environment_background):
                 seen_behind = wp.vec3(0.0)

@@ -31,6 +31,8 @@ class MaterialData:
     double_sided: int
     # 1 for glTF alphaMode MASK
     alpha_mask: int
+    # 1 for glTF alphaMode BLEND: camera rays composite its alpha as coverage
+    alpha_blend: int
     # 1 for an unlit material (KHR_materials_unlit): its radiance is its base colour, lights ignored
     unlit: int
     # indices into SceneData.textures, NO_TEXTURE when the slot is empty

@@ -51,6 +51,8 @@ class Features:
     supersampling: bool = True
     # camera rays may pass through surfaces: single-sided back faces, alpha masks
     pass_through: bool = True
+    # camera rays composite alpha-blended surfaces' coverage front to back (glTF alphaMode BLEND)
+    alpha_blend: bool = True
     # occlusion rays (shadow rays, shadowed environment directions) pass alpha cut-outs
     masked_occlusion: bool = True
     # depth and normal outputs
@@ -184,7 +186,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
         add("shadows", False, "no shadow rays: shadows=False")
     elif not scene.lights:
         add("shadows", False, "no shadow rays: no lights")
-    elif len(prims) == 1 and prims[0].material.alpha_mode != "MASK" and _is_convex(scene, prims[0]):
+    elif len(prims) == 1 and not prims[0].material.see_through and _is_convex(scene, prims[0]):
         add("shadows", False, "no shadow rays: one convex mesh cannot shadow itself beyond what n.l does")
     elif shadows == "map":
         decisions.append(Decision("shadows", "map", f"shadow maps: {len(scene.lights)} lookups per hit, "
@@ -240,6 +242,10 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     else:
         add("masked_occlusion", masked, f"occlusion rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
             else "no cut-outs in occlusion rays: no alpha-masked material")
+    blended = sum(1 for m in mats if m.alpha_mode == "BLEND")
+    add("alpha_blend", blended, f"camera rays composite alpha-blended coverage front to back "
+        f"({_count(blended, 'material')}; opaque to shadow and environment rays)" if blended
+        else "no alpha blending: no alphaMode BLEND material")
     single = sum(1 for m in mats if not m.double_sided or m.alpha_mode == "MASK")
     add("pass_through", single, f"camera rays pass single-sided back faces and alpha cut-outs ({_count(single, 'material')})"
         if single else "no pass-through: every material is double-sided and opaque")

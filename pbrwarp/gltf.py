@@ -13,7 +13,7 @@ morph targets at their default weights (POSITION, NORMAL and TANGENT); skins pos
 graph's own transforms (the pose a viewer shows before any animation plays);
 EXT_mesh_gpu_instancing, whose instances are expanded into copies; PNG and JPEG textures (and
 WebP, GIF, BMP, TGA); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
-with alphaMode OPAQUE and MASK; KHR_texture_transform, KHR_materials_specular,
+with alphaMode OPAQUE, MASK and BLEND; KHR_texture_transform, KHR_materials_specular,
 KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_lights_punctual
 (but ``range``); perspective cameras.
 
@@ -22,7 +22,7 @@ on 3 materials ('cloth', ...) ignored: rendered without sheen"), saying what is 
 and kept in ``GltfContent.load_warnings`` (``Scene.load_warnings``, listed by ``pw.explain``): the
 extensions ``_EXTENSIONS`` marks IGNORED and unknown ones, TEXCOORD_1 and above (sampled as
 TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification, light ``range``,
-alphaMode BLEND (rendered opaque), animations (the nodes' stored static pose is shown), points and
+animations (the nodes' stored static pose is shown), points and
 lines (skipped), cameras other than perspective (skipped) and scenes other than the default.
 pbrwarp/gltf_notes.py makes the notes (the reader adds the ones it can only make where it reads:
 TEXCOORD_n, camera types, morph target attributes). An IGNORED extension listed in

@@ -129,7 +129,6 @@ def _note_unhonoured(doc, nodes: list):
     _note_scenes(doc)
     _note_animations(doc)
     _note_points_and_lines(doc, nodes)
-    _note_alpha_blend(doc)
     _note_sampler_filters(doc)
     _note_light_ranges(doc)
 
@@ -210,13 +209,6 @@ def _note_points_and_lines(doc, nodes: list):
         name = _SKIPPED_MODES[mesh["primitives"][pi].get("mode")]
         doc.notes.add(f"mode {name}", f"{{subjects}} drawn as {name} skipped: pbrwarp renders triangles only",
                       "primitive", (mi, pi), f"{pi} of mesh {_ident(mesh, mi)}")
-
-
-def _note_alpha_blend(doc):
-    for index, material in _elements(doc, "materials"):
-        if material.get("alphaMode") == "BLEND":
-            doc.notes.add("alphaMode BLEND", "alphaMode BLEND on {subjects} not blended: rendered opaque "
-                          "(pbrwarp cuts out by alphaMode MASK only)", "material", index, _ident(material, index))
 
 
 def _note_sampler_filters(doc):

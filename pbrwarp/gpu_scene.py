@@ -191,6 +191,7 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
         row.ior_eta = _float32_vector(mat.complex_ior[0], "Material.complex_ior n")
         row.ior_kappa = _float32_vector(mat.complex_ior[1], "Material.complex_ior k")
     row.alpha_mask = int(mat.alpha_mode == "MASK")
+    row.alpha_blend = int(mat.alpha_mode == "BLEND")
     row.unlit = int(mat.unlit)
     slot_index = {slot: texture_slots[(id(tex), srgb)] if has_uvs else -1 for slot, tex, srgb in mat.textures()}
     row.base_color_texture = slot_index.get("base_color_texture", -1)
@@ -308,7 +309,7 @@ def closed_seen_from(scene, prim, point=None) -> bool:
     outside its bounding box, so outside the volume: a ray from there enters it through a front
     face first, and a segment from anywhere to there that meets it leaves it through a front face
     turned towards the point. ``prim`` is one of ``scene``'s, whose cache keeps its facts."""
-    if prim.material.alpha_mode == "MASK":
+    if prim.material.see_through:
         return False
     if point is not None:
         lo, hi = scene.cache.fact("bounds", prim, lambda p: p.bounds())

@@ -61,8 +61,10 @@ class Material(validate.Checked):
       as glTF specifies (glTF files set it per material; glTF's own default is False). Shadows
       are cast by every face either way.
     - ``alpha_mode``: "OPAQUE" (default), "MASK" (cut out where base-colour alpha, times vertex and
-      texture alpha, is below ``alpha_cutoff``, in [0, 1], default 0.5) or "BLEND" (rendered
-      opaque).
+      texture alpha, is below ``alpha_cutoff``, in [0, 1], default 0.5) or "BLEND" (that alpha is
+      the surface's coverage: a camera ray takes alpha of its shading and passes 1 - alpha on to
+      what lies behind, front to back along the ray, and the frame's alpha is the coverage so
+      composited; shadow rays and shadowed environment rays treat the surface as opaque).
     - ``unlit``: KHR_materials_unlit's constant shading (default False). When True the surface's
       radiance towards the eye is its base colour, times the base-colour texture and vertex
       colour, in cd/m^2 (a white unlit surface is 1 nit, whatever lights the scene); lights,
@@ -127,6 +129,12 @@ class Material(validate.Checked):
         n_rgb, k_rgb = _complex_ior((n, k))
         f0 = tuple(((a - 1) ** 2 + b**2) / ((a + 1) ** 2 + b**2) for a, b in zip(n_rgb, k_rgb))
         return cls(base_color=f0, metallic=1.0, roughness=roughness, complex_ior=(n_rgb, k_rgb), **kwargs)
+
+    @property
+    def see_through(self) -> bool:
+        """Whether camera rays may see what lies behind the surface: it is alpha-masked or
+        alpha-blended (its back faces and what a closed mesh of it holds may then show)."""
+        return self.alpha_mode != "OPAQUE"
 
     @property
     def f0_dielectric(self) -> tuple:
