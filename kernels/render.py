@@ -8,7 +8,7 @@ import functools
 import warp as wp
 
 from .ambient import ambient_for
-from .brdf import albedo_coupled_brdf_for, brdf_for
+from .brdf import albedo_coupled_brdf_for, brdf_for, fresnel_dielectric, max_channel
 from .ibl import EnvironmentData, environment_radiance
 from .camera import CameraData, camera_ray_direction
 from .light_buffer import LightBuffers
@@ -21,6 +21,7 @@ from .robust import RAY_FAR, clamp_to_float32_max, SHADOW_RAY_SHORTENING, offset
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
+from .transmission import beer_lambert, refract_through, transmitted_share
 from .work_queue import read_counter, take_next_item_from
 from .surface import MAX_PASS_THROUGH, NEGLIGIBLE_THROUGHPUT, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
 from .visibility_buffer import visible_triangle
@@ -80,6 +81,42 @@ def render_kernel(features):
         return base
 
     @wp.func
+    def surface_inputs(scene: SceneData, mat: MaterialData, uv: wp.vec2):
+        """(metallic, roughness, specular, f0_dielectric) at the hit: the factors times their
+        textures."""
+        metallic = mat.metallic
+        roughness = mat.roughness
+        specular = mat.specular
+        f0_dielectric = mat.f0_dielectric
+        if wp.static(f.metallic_roughness_texture):
+            mr = texture_or_one(scene, mat.metallic_roughness_texture, uv)
+            roughness = roughness * mr[1]
+            metallic = metallic * mr[2]
+        if wp.static(f.specular_texture):
+            specular = specular * texture_or_one(scene, mat.specular_texture, uv)[3]
+        if wp.static(f.specular_color_texture):
+            sc = texture_or_one(scene, mat.specular_color_texture, uv)
+            f0_dielectric = wp.cw_mul(f0_dielectric, wp.vec3(sc[0], sc[1], sc[2]))
+        return metallic, roughness, specular, f0_dielectric
+
+    @wp.func
+    def transmission_at(scene: SceneData, mat: MaterialData, uv: wp.vec2) -> float:
+        """KHR_materials_transmission's share at the hit: its factor times the texture's R."""
+        t = mat.transmission
+        if wp.static(f.transmission_texture):
+            if t > 0.0:
+                t = t * texture_or_one(scene, mat.transmission_texture, uv)[0]
+        return t
+
+    @wp.func
+    def transmitted(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2, n: wp.vec3, v: wp.vec3,
+                    t: float) -> wp.vec3:
+        """The share of the light behind the surface that passes through it towards v."""
+        metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
+        return transmitted_share(base_color_at(scene, h, mat, uv), metallic, t, specular, f0_dielectric,
+                                 wp.max(wp.dot(n, v), 0.0))
+
+    @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
               dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit, mat: MaterialData, uv: wp.vec2, view: wp.vec3,
               n: wp.vec3, seed: int, stream: int, cache: ShadowCache, scale: wp.vec3, scale_material: int):
@@ -98,19 +135,10 @@ def render_kernel(features):
                 radiance = wp.cw_mul(radiance, wp.vec3(em[0], em[1], em[2]))
         if wp.static(shaded):
             base = base_color_at(scene, h, mat, uv)
-            metallic = mat.metallic
-            roughness = mat.roughness
-            specular = mat.specular
-            f0_dielectric = mat.f0_dielectric
-            if wp.static(f.metallic_roughness_texture):
-                mr = texture_or_one(scene, mat.metallic_roughness_texture, uv)
-                roughness = roughness * mr[1]
-                metallic = metallic * mr[2]
-            if wp.static(f.specular_texture):
-                specular = specular * texture_or_one(scene, mat.specular_texture, uv)[3]
-            if wp.static(f.specular_color_texture):
-                sc = texture_or_one(scene, mat.specular_color_texture, uv)
-                f0_dielectric = wp.cw_mul(f0_dielectric, wp.vec3(sc[0], sc[1], sc[2]))
+            metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
+            if wp.static(f.transmission):
+                # the diffuse lobe keeps what transmission leaves (KHR_materials_transmission)
+                base = base * (1.0 - transmission_at(scene, mat, uv))
             for i in range(scene.num_lights):
                 ls = sample_light(scene.lights[i], h.p)
                 # light below the geometric surface: shading normals must not leak it through
@@ -296,6 +324,8 @@ def render_kernel(features):
                 # surface covers (alpha-blended surfaces cover part of it)
                 throughput = wp.vec3(1.0)
                 uncovered = float(1.0)
+                # the attenuation coefficient of the volume the ray travels in (0: none)
+                sigma = wp.vec3(0.0)
                 hits_before = hits
                 face, u, v = primary_hit(scene, seen, origin, d)
                 for _ in range(MAX_PASS_THROUGH):
@@ -304,13 +334,31 @@ def render_kernel(features):
                     h = surface_hit(scene, face, u, v, d)
                     mat = scene.materials[h.material]
                     uv = hit_uv(scene, h)
+                    if wp.static(f.volume):
+                        if max_channel(sigma) > 0.0:  # absorbed on the way from inside a volume
+                            throughput = wp.cw_mul(throughput, beer_lambert(sigma, wp.length(h.p - origin)))
+                        if h.back_face == 1 and mat.thickness > 0.0:
+                            if transmission_at(scene, mat, uv) > 0.0 and not is_cut_out(scene, h, mat, uv):
+                                # leaving a volume (whatever double_sided says): a bare interface, as
+                                # lights outside do not shade it; its partial reflection is dropped
+                                eta = 1.0 / mat.ior
+                                refracts, d_next, bent_by = refract_through(d, shading_normal(scene, h, mat, uv),
+                                                                            h.ng, eta)
+                                if refracts:
+                                    fresnel = fresnel_dielectric(wp.dot(bent_by, -d), eta)
+                                    throughput = throughput * (1.0 - fresnel)
+                                    sigma = wp.vec3(0.0)
+                                d = d_next
+                                origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
+                                face, u, v = next_hit(scene, origin, d)
+                                continue
                     if wp.static(f.pass_through):
                         if is_culled(scene, h, mat, uv):
                             origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
                             face, u, v = next_hit(scene, origin, d)
                             continue
                     n = wp.vec3(0.0)
-                    if wp.static(shaded or f.aovs):
+                    if wp.static(shaded or f.aovs or f.transmission):
                         n = shading_normal(scene, h, mat, uv)
                     shaded_radiance, cache, scale, scale_material = shade(scene, maps, buffers, env, dfg, h, mat, uv,
                                                                           -d, n, pixel_seed, s, cache, scale,
@@ -320,18 +368,45 @@ def render_kernel(features):
                             hits = hits + 1
                             normal_sum = normal_sum + n
                             depth = wp.min(depth, wp.length(h.p - cam.eye))
+                    t = float(0.0)
+                    if wp.static(f.transmission):
+                        t = transmission_at(scene, mat, uv)
                     if wp.static(f.alpha_blend):
                         if mat.alpha_blend == 1:
                             # glTF alphaMode BLEND: alpha is the surface's coverage, composited
-                            # front to back ("over", Porter & Duff 1984)
+                            # front to back ("over", Porter & Duff 1984); a transmissive blended
+                            # surface passes its share on as a thin wall
                             alpha = wp.clamp(alpha_at(scene, h, mat, uv), 0.0, 1.0)
                             radiance = radiance + wp.cw_mul(throughput, shaded_radiance) * alpha
-                            throughput = throughput * (1.0 - alpha)
+                            passed = wp.vec3(1.0 - alpha)
+                            if wp.static(f.transmission):
+                                if t > 0.0:
+                                    passed = passed + transmitted(scene, h, mat, uv, n, -d, t) * alpha
+                            throughput = wp.cw_mul(throughput, passed)
                             uncovered = uncovered * (1.0 - alpha)
-                            if uncovered <= NEGLIGIBLE_THROUGHPUT:
+                            if wp.max(max_channel(throughput), uncovered) <= NEGLIGIBLE_THROUGHPUT:
                                 throughput = wp.vec3(0.0)
                                 uncovered = 0.0
                                 break
+                            origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
+                            face, u, v = next_hit(scene, origin, d)
+                            continue
+                    if wp.static(f.transmission):
+                        if t > 0.0:
+                            # KHR_materials_transmission: the surface's own radiance, then the share
+                            # of what lies behind it; straight on through a thin wall, refracted into
+                            # a volume (KHR_materials_volume)
+                            radiance = radiance + wp.cw_mul(throughput, shaded_radiance)
+                            throughput = wp.cw_mul(throughput, transmitted(scene, h, mat, uv, n, -d, t))
+                            uncovered = 0.0
+                            if max_channel(throughput) <= NEGLIGIBLE_THROUGHPUT:
+                                throughput = wp.vec3(0.0)
+                                break
+                            if wp.static(f.volume):
+                                if mat.thickness > 0.0:
+                                    refracts, d_next, bent_by = refract_through(d, n, h.ng, mat.ior)
+                                    d = d_next
+                                    sigma = mat.attenuation
                             origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
                             face, u, v = next_hit(scene, origin, d)
                             continue
@@ -340,6 +415,10 @@ def render_kernel(features):
                     uncovered = 0.0
                     break
                 covered = covered + (1.0 - uncovered)
+                if wp.static(f.transmission and not f.environment_background):
+                    # what transmissive surfaces let through of the background is in the pixel's
+                    # radiance (they cover the pixel); the uncovered rest is blended by alpha
+                    radiance = radiance + wp.cw_mul(throughput - wp.vec3(uncovered), background)
                 if wp.static(f.environment_background):
                     if throughput[0] + throughput[1] + throughput[2] > 0.0:  # no weight is negative
                         radiance = radiance + wp.cw_mul(throughput, environment_radiance(env, d))

@@ -8,6 +8,9 @@ from .textures import Texels, TextureData
 wp.set_module_options({"enable_backward": False})
 
 NO_TEXTURE = wp.constant(-1)
+# The index of refraction MaterialData.ior holds for KHR_materials_ior's infinite one (ior = 0):
+# refraction at it bends rays along the normal to within 1e-6 radians.
+INFINITE_IOR = 1.0e6
 
 
 @wp.struct
@@ -35,6 +38,14 @@ class MaterialData:
     alpha_blend: int
     # 1 for an unlit material (KHR_materials_unlit): its radiance is its base colour, lights ignored
     unlit: int
+    # KHR_materials_transmission's factor (0: opaque), KHR_materials_volume's thickness factor (0:
+    # thin-walled), attenuation coefficient sigma per scene unit (0: none; FLOAT32_MAX for an
+    # infinite one), and the dielectric's index of refraction (KHR_materials_ior; its "infinite"
+    # 0 stored as INFINITE_IOR)
+    transmission: float
+    thickness: float
+    attenuation: wp.vec3
+    ior: float
     # indices into SceneData.textures, NO_TEXTURE when the slot is empty
     base_color_texture: int
     metallic_roughness_texture: int
@@ -43,6 +54,7 @@ class MaterialData:
     occlusion_texture: int
     specular_texture: int
     specular_color_texture: int
+    transmission_texture: int
 
 
 @wp.struct

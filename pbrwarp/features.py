@@ -36,6 +36,11 @@ class Features:
     # KHR_materials_specular's textures: strength (alpha channel) and colour
     specular_texture: bool = True
     specular_color_texture: bool = True
+    # KHR_materials_transmission: camera rays pass through transmissive surfaces; its texture
+    transmission: bool = True
+    transmission_texture: bool = True
+    # KHR_materials_volume: rays refract into closed meshes and are absorbed inside
+    volume: bool = True
     normal_mapping: bool = True
     vertex_colors: bool = True
     emission: bool = True
@@ -70,7 +75,8 @@ class Features:
     @property
     def textures(self) -> bool:
         return (self.base_color_texture or self.metallic_roughness_texture or self.emissive_texture
-                or self.normal_mapping or self.specular_texture or self.specular_color_texture)
+                or self.normal_mapping or self.specular_texture or self.specular_color_texture
+                or self.transmission_texture)
 
     @classmethod
     def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), shadows="rays", ibl: IBL = IBL(),
@@ -242,6 +248,18 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     else:
         add("masked_occlusion", masked, f"occlusion rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
             else "no cut-outs in occlusion rays: no alpha-masked material")
+    transmissive = [m for m in mats if m.transmissive and not m.unlit]
+    add("transmission", transmissive, f"camera rays pass through smooth transmissive surfaces "
+        f"(KHR_materials_transmission: {_count(len(transmissive), 'material')}; opaque to shadow rays)"
+        if transmissive else "no transmission: no transmissive material")
+    present, why = slot("transmission_texture", "transmission texture")
+    if present and not transmissive:
+        present, why = False, "no transmission textures read: no transmissive material"
+    add("transmission_texture", present, why)
+    volumes = sum(1 for m in transmissive if m.thickness > 0.0)
+    add("volume", volumes, f"rays refract into and out of closed volumes, absorbed inside (KHR_materials_volume: "
+        f"{_count(volumes, 'material')})" if volumes else "no volumes: every transmissive surface is thin-walled"
+        if transmissive else "no volumes: no transmissive material")
     blended = sum(1 for m in mats if m.alpha_mode == "BLEND")
     add("alpha_blend", blended, f"camera rays composite alpha-blended coverage front to back "
         f"({_count(blended, 'material')}; opaque to shadow and environment rays)" if blended

@@ -14,7 +14,8 @@ graph's own transforms (the pose a viewer shows before any animation plays);
 EXT_mesh_gpu_instancing, whose instances are expanded into copies; PNG and JPEG textures (and
 WebP, GIF, BMP, TGA); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
 with alphaMode OPAQUE, MASK and BLEND; KHR_texture_transform, KHR_materials_specular,
-KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_lights_punctual
+KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_materials_transmission
+and KHR_materials_volume (smooth transmission), KHR_lights_punctual
 (but ``range``); perspective cameras.
 
 Everything else a file asks for is named in a warning at load, once per kind ("KHR_materials_sheen
@@ -799,6 +800,7 @@ class _Materials:
         (("emissiveTexture",), "emissive_texture"),
         (("extensions", "KHR_materials_specular", "specularTexture"), "specular_texture"),
         (("extensions", "KHR_materials_specular", "specularColorTexture"), "specular_color_texture"),
+        (("extensions", "KHR_materials_transmission", "transmissionTexture"), "transmission_texture"),
     )
 
     def __init__(self, doc: _Document):
@@ -820,6 +822,7 @@ class _Materials:
         pbr = spec.get("pbrMetallicRoughness", {})
         ext = spec.get("extensions", {})
         emissive_strength = ext.get("KHR_materials_emissive_strength", {}).get("emissiveStrength", 1.0)
+        volume = ext.get("KHR_materials_volume", {})
         textures = {}
         for location, slot in self._SLOTS:
             info = spec
@@ -840,6 +843,12 @@ class _Materials:
             alpha_mode=spec.get("alphaMode", "OPAQUE"),
             alpha_cutoff=spec.get("alphaCutoff", 0.5),
             unlit="KHR_materials_unlit" in ext,
+            transmission=ext.get("KHR_materials_transmission", {}).get("transmissionFactor", 0.0),
+            # the thickness texture is for renderers that cannot measure the geometry, which a
+            # ray tracer does (KHR_materials_volume, "Thickness Texture")
+            thickness=volume.get("thicknessFactor", 0.0),
+            attenuation_color=volume.get("attenuationColor", (1.0, 1.0, 1.0)),
+            attenuation_distance=volume.get("attenuationDistance", math.inf),
             name=spec.get("name", ""),
             **textures,
         )

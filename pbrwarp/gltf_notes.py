@@ -41,10 +41,10 @@ _EXTENSIONS = {
     "KHR_materials_iridescence": (IGNORED, "rendered without the thin-film colours"),
     "KHR_materials_pbrSpecularGlossiness": (IGNORED, "rendered with the material's metallic-roughness values"),
     "KHR_materials_sheen": (IGNORED, "rendered without sheen (fabrics look darker than they should)"),
-    "KHR_materials_transmission": (IGNORED, "rendered opaque (nothing shows through)"),
+    "KHR_materials_transmission": (PARTLY, "transmission through rough surfaces is not blurred"),
     "KHR_materials_unlit": (HONOURED, ""),
     "KHR_materials_variants": (IGNORED, "each primitive shows its default material"),
-    "KHR_materials_volume": (IGNORED, "rendered without absorption inside the volume"),
+    "KHR_materials_volume": (HONOURED, ""),
     "KHR_mesh_quantization": (HONOURED, ""),
     "KHR_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
     "EXT_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
@@ -131,6 +131,7 @@ def _note_unhonoured(doc, nodes: list):
     _note_points_and_lines(doc, nodes)
     _note_sampler_filters(doc)
     _note_light_ranges(doc)
+    _note_rough_transmission(doc)
 
 
 def _note_extensions(doc):
@@ -229,3 +230,19 @@ def _note_light_ranges(doc):
         if isinstance(light, dict) and "range" in light:
             doc.notes.add("light range", "range of {subjects} not applied: they light beyond it, falling off "
                           "by the inverse square law alone", "light", index, _ident(light, index))
+
+
+def _note_rough_transmission(doc):
+    """Transmissive materials whose roughness is not 0: pbrwarp refracts as through a smooth
+    surface (docs/materials.md, "Transmission")."""
+    for index, material in _elements(doc, "materials"):
+        extensions = material.get("extensions")
+        transmission = extensions.get("KHR_materials_transmission") if isinstance(extensions, dict) else None
+        if not isinstance(transmission, dict) or transmission.get("transmissionFactor", 0.0) == 0.0:
+            continue
+        pbr = material.get("pbrMetallicRoughness")
+        pbr = pbr if isinstance(pbr, dict) else {}
+        if pbr.get("roughnessFactor", 1.0) != 0.0:
+            doc.notes.add("rough transmission", "transmission through {subjects} with roughness above 0 not blurred "
+                          "(KHR_materials_transmission): light passes as through a smooth surface", "material",
+                          index, _ident(material, index))

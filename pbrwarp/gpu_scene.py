@@ -27,7 +27,7 @@ from .raster import Clusters, triangle_clusters
 from .scene import unit_rows
 from .textures import UNORM8_DECODE, WRAP_MODES, Texture
 from pbrwarp.kernels.lights import LightData
-from pbrwarp.kernels.scene_data import MaterialData, SceneData
+from pbrwarp.kernels.scene_data import INFINITE_IOR, MaterialData, SceneData
 from pbrwarp.kernels.textures import TEXELS_FLOAT, TEXELS_SRGB8, TEXELS_UNORM8, Texels, TextureData, texel_store
 
 # Largest triangle and vertex counts the int32 indices of the kernels address.
@@ -193,6 +193,10 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.alpha_mask = int(mat.alpha_mode == "MASK")
     row.alpha_blend = int(mat.alpha_mode == "BLEND")
     row.unlit = int(mat.unlit)
+    row.transmission, row.thickness = mat.transmission, mat.thickness
+    row.attenuation = _float32_vector([min(sigma, _FLOAT32_MAX) for sigma in mat.attenuation_coefficient],
+                                      "Material.attenuation_color")
+    row.ior = mat.ior if mat.ior > 0.0 else INFINITE_IOR
     slot_index = {slot: texture_slots[(id(tex), srgb)] if has_uvs else -1 for slot, tex, srgb in mat.textures()}
     row.base_color_texture = slot_index.get("base_color_texture", -1)
     row.metallic_roughness_texture = slot_index.get("metallic_roughness_texture", -1)
@@ -201,8 +205,12 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.occlusion_texture = slot_index.get("occlusion_texture", -1)
     row.specular_texture = slot_index.get("specular_texture", -1)
     row.specular_color_texture = slot_index.get("specular_color_texture", -1)
+    row.transmission_texture = slot_index.get("transmission_texture", -1)
     row.occlusion_strength = mat.occlusion_strength
     return row
+
+
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def _float32_vector(values, what: str):

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from . import validate
-from .errors import InputError
+from .errors import InputError, InputTypeError
 from .textures import Texture
 
 # Texture slots: (attribute, whether the texels are sRGB-encoded colour by default).
@@ -17,6 +18,7 @@ TEXTURE_SLOTS = (
     ("emissive_texture", True),
     ("specular_texture", False),
     ("specular_color_texture", True),
+    ("transmission_texture", False),
 )
 
 
@@ -70,6 +72,19 @@ class Material(validate.Checked):
       colour, in cd/m^2 (a white unlit surface is 1 nit, whatever lights the scene); lights,
       environment, emission, normal and occlusion maps do not change it. It still casts shadows,
       and ``alpha_mode`` and ``double_sided`` apply.
+    - ``transmission``: KHR_materials_transmission's share of the light entering the surface (not
+      reflected by its specular layer) that passes through it rather than being diffused, in
+      [0, 1] (default 0, opaque); ``transmission_texture`` (linear) multiplies it by its R
+      channel. Transmitted light is tinted by the base colour; metals transmit nothing (the share
+      is scaled by 1 - metallic). Ray traced for smooth surfaces (docs/materials.md).
+    - ``thickness``: KHR_materials_volume's thicknessFactor, >= 0 (default 0). 0 makes a
+      transmissive surface thin-walled: rays pass straight through it. Above 0 the mesh bounds a
+      volume: rays refract by ``ior`` entering and leaving it, whatever ``double_sided`` says, and
+      the distances they travel inside are measured from the geometry (the value itself only
+      chooses the volume).
+    - ``attenuation_color`` (linear RGB in [0, 1], default white) and ``attenuation_distance``
+      (> 0, scene units, default infinity: no absorption): KHR_materials_volume's absorption, the
+      colour white light turns into after that distance inside the volume.
     - ``name``: for messages (default "").
     - ``complex_ior``: optional ``(n, k)``, the complex index of refraction n + ik of a metal,
       each an RGB triple (n > 0, k >= 0), e.g. from refractiveindex.info at 650, 550 and 450 nm.
@@ -98,6 +113,11 @@ class Material(validate.Checked):
     alpha_mode: str = "OPAQUE"
     alpha_cutoff: float = 0.5
     unlit: bool = False
+    transmission: float = 0.0
+    transmission_texture: Texture | None = None
+    thickness: float = 0.0
+    attenuation_color: tuple = (1.0, 1.0, 1.0)
+    attenuation_distance: float = math.inf
     name: str = field(default="")
     complex_ior: tuple | None = None
 
@@ -115,6 +135,10 @@ class Material(validate.Checked):
         "alpha_mode": lambda material, value: _alpha_mode(value),
         "double_sided": lambda material, value: bool(value),
         "unlit": lambda material, value: bool(value),
+        "transmission": lambda material, value: validate.unit_interval(value, "Material.transmission"),
+        "thickness": lambda material, value: validate.non_negative(value, "Material.thickness"),
+        "attenuation_color": lambda material, value: _unit_colour(value, "Material.attenuation_color"),
+        "attenuation_distance": lambda material, value: _distance(value),
         "complex_ior": lambda material, value: None if value is None else _complex_ior(value),
         **{slot: (lambda material, value, slot=slot: Texture.wrap(value, f"Material.{slot}"))
            for slot, _ in TEXTURE_SLOTS},
@@ -132,9 +156,23 @@ class Material(validate.Checked):
 
     @property
     def see_through(self) -> bool:
-        """Whether camera rays may see what lies behind the surface: it is alpha-masked or
-        alpha-blended (its back faces and what a closed mesh of it holds may then show)."""
-        return self.alpha_mode != "OPAQUE"
+        """Whether camera rays may see what lies behind the surface: it is alpha-masked,
+        alpha-blended or transmissive (its back faces and what a closed mesh of it holds may then
+        show)."""
+        return self.alpha_mode != "OPAQUE" or self.transmissive
+
+    @property
+    def transmissive(self) -> bool:
+        """Whether light may pass through the surface (KHR_materials_transmission)."""
+        return self.transmission > 0.0
+
+    @property
+    def attenuation_coefficient(self) -> tuple:
+        """sigma = -ln(attenuation_color) / attenuation_distance per channel, per scene unit
+        (KHR_materials_volume): 0 without absorption, infinite for a black channel."""
+        return tuple(0.0 if c == 1.0 or math.isinf(self.attenuation_distance)
+                     else (math.inf if c == 0.0 else -math.log(c) / self.attenuation_distance)
+                     for c in self.attenuation_color)
 
     @property
     def f0_dielectric(self) -> tuple:
@@ -164,6 +202,24 @@ def _ior(value) -> float:
     x = validate.finite_scalar(value, "Material.ior")
     if x != 0.0 and x < 1.0:
         raise InputError(f"Material.ior must be >= 1 (or 0, meaning infinite, as KHR_materials_ior allows), got {x}")
+    return x
+
+
+def _unit_colour(value, what: str) -> tuple:
+    rgb = validate.colour(value, what)
+    if max(rgb) > 1.0:
+        raise InputError(f"{what} components must lie in [0, 1], got {value!r}")
+    return rgb
+
+
+def _distance(value) -> float:
+    """A distance > 0, infinity allowed (KHR_materials_volume's attenuationDistance)."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputTypeError(f"Material.attenuation_distance must be a number, got {value!r}") from None
+    if not x > 0.0:
+        raise InputError(f"Material.attenuation_distance must be > 0 (infinity: no absorption), got {value!r}")
     return x
 
 

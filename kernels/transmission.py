@@ -1,0 +1,85 @@
+"""Smooth dielectric interfaces for ray-traced transmission (KHR_materials_transmission,
+KHR_materials_volume, KHR_materials_ior): Snell refraction with total internal reflection, the
+transmitted share of a surface, and Beer-Lambert absorption inside a volume.
+
+Conventions are pbrt-v4's (Pharr, Jakob and Humphreys, "Physically Based Rendering", 4th ed.,
+section 9.3): ``wi`` points away from the surface, towards where the light goes back to; ``n`` is
+the normal on wi's side; ``eta`` is the relative index of refraction, that of the side the ray
+enters over that of the side it leaves (ior entering glass from air, 1 / ior leaving it).
+"""
+
+import warp as wp
+
+from .brdf import F_Schlick, dielectric_specular_f0, max_channel
+from .robust import safe_normalize
+
+wp.set_module_options({"enable_backward": False})
+
+
+@wp.func
+def refract(wi: wp.vec3, n: wp.vec3, eta: float):
+    """(whether light refracts, the transmitted direction): Snell's law, eta sin_t = sin_i, in the
+    vector form of pbrt-v4's Refract; False (and a zero vector) on total internal reflection,
+    where sin_t would exceed 1. ``wi`` and ``n`` are unit vectors on the same side."""
+    cos_i = wp.clamp(wp.dot(n, wi), 0.0, 1.0)
+    sin2_i = wp.max(0.0, 1.0 - cos_i * cos_i)
+    sin2_t = sin2_i / (eta * eta)
+    if sin2_t >= 1.0:
+        return False, wp.vec3(0.0)
+    cos_t = wp.sqrt(1.0 - sin2_t)
+    return True, safe_normalize(-wi / eta + (cos_i / eta - cos_t) * n, -n)
+
+
+@wp.func
+def reflect(wi: wp.vec3, n: wp.vec3) -> wp.vec3:
+    """The mirror direction of ``wi`` about ``n``: 2 (n . wi) n - wi."""
+    return 2.0 * wp.dot(n, wi) * n - wi
+
+
+@wp.func
+def refract_through(d: wp.vec3, n: wp.vec3, ng: wp.vec3, eta: float):
+    """(whether the ray refracts, its new direction, the normal that bent it) for a ray of
+    direction ``d`` meeting an interface of shading normal ``n`` and geometric normal ``ng``, both
+    turned towards where the ray comes from: refracted by n, or reflected by it on total internal
+    reflection. Where the shading normal would send the ray to the wrong side of the geometric
+    surface (back where it came from after refraction, through the surface after reflection:
+    normal maps and interpolated normals at grazing angles), the geometric normal decides."""
+    refracts, direction = refract(-d, n, eta)
+    if refracts:
+        if wp.dot(direction, ng) < 0.0:
+            return True, direction, n
+        refracts, direction = refract(-d, ng, eta)
+        if refracts:
+            return True, direction, ng
+        return False, reflect(-d, ng), ng
+    direction = reflect(-d, n)
+    if wp.dot(direction, ng) > 0.0:
+        return False, direction, n
+    refracts, direction = refract(-d, ng, eta)
+    if refracts:
+        return True, direction, ng
+    return False, reflect(-d, ng), ng
+
+
+@wp.func
+def transmitted_share(base_color: wp.vec3, metallic: float, transmission: float, specular: float,
+                      f0_dielectric: wp.vec3, n_dot_v: float) -> wp.vec3:
+    """The share of light a smooth surface transmits, per channel: glTF's dielectric BRDF with
+    KHR_materials_transmission, mix(dielectric, metal, metallic), its base layer
+    mix(diffuse, btdf * base_color, transmission) under the specular layer's Fresnel weight
+    1 - max(F) (KHR_materials_specular's albedo scaling), F Schlick's at n . v as the layer's:
+    (1 - metallic) transmission (1 - max(F)) base_color."""
+    f = F_Schlick(dielectric_specular_f0(f0_dielectric, specular), wp.vec3(specular), n_dot_v)
+    return base_color * ((1.0 - metallic) * transmission * (1.0 - max_channel(f)))
+
+
+@wp.func
+def beer_lambert(sigma: wp.vec3, distance: float) -> wp.vec3:
+    """Transmittance exp(-sigma distance) per channel of a homogeneous absorbing medium
+    (Beer-Lambert law; KHR_materials_volume's sigma = -ln(attenuationColor) / attenuationDistance):
+    1 where sigma is 0, whatever the distance."""
+    out = wp.vec3(1.0)
+    for c in range(3):
+        if sigma[c] > 0.0:
+            out[c] = wp.exp(-sigma[c] * distance)
+    return out
