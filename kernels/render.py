@@ -9,7 +9,7 @@ import warp as wp
 
 from .ambient import ambient_for
 from .brdf import albedo_coupled_brdf_for, brdf_for, fresnel_dielectric, max_channel
-from .ibl import EnvironmentData, environment_radiance
+from .ibl import EnvironmentData, environment_radiance, prefiltered_radiance
 from .camera import CameraData, camera_ray_direction
 from .light_buffer import LightBuffers
 from .light_buffer_query import (OCCLUDED, SHADOW_CACHE_LIGHTS, UNDECIDED, ShadowCache, light_buffer_occlusion,
@@ -21,7 +21,8 @@ from .robust import RAY_FAR, clamp_to_float32_max, SHADOW_RAY_SHORTENING, offset
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
-from .transmission import beer_lambert, refract_through, transmitted_share
+from .transmission import (beer_lambert, blurred_roughness, refract_through, transmission_blur,
+                           transmitted_share)
 from .work_queue import read_counter, take_next_item_from
 from .surface import MAX_PASS_THROUGH, NEGLIGIBLE_THROUGHPUT, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
 from .visibility_buffer import visible_triangle
@@ -98,6 +99,11 @@ def render_kernel(features):
             sc = texture_or_one(scene, mat.specular_color_texture, uv)
             f0_dielectric = wp.cw_mul(f0_dielectric, wp.vec3(sc[0], sc[1], sc[2]))
         return metallic, roughness, specular, f0_dielectric
+
+    @wp.func
+    def roughness_at(scene: SceneData, mat: MaterialData, uv: wp.vec2) -> float:
+        metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
+        return roughness
 
     @wp.func
     def transmission_at(scene: SceneData, mat: MaterialData, uv: wp.vec2) -> float:
@@ -326,6 +332,8 @@ def render_kernel(features):
                 uncovered = float(1.0)
                 # the attenuation coefficient of the volume the ray travels in (0: none)
                 sigma = wp.vec3(0.0)
+                # the squared GGX width rough transmissive surfaces blur the environment by
+                blur = float(0.0)
                 hits_before = hits
                 face, u, v = primary_hit(scene, seen, origin, d)
                 for _ in range(MAX_PASS_THROUGH):
@@ -348,6 +356,8 @@ def render_kernel(features):
                                     fresnel = fresnel_dielectric(wp.dot(bent_by, -d), eta)
                                     throughput = throughput * (1.0 - fresnel)
                                     sigma = wp.vec3(0.0)
+                                    if wp.static(f.rough_transmission):
+                                        blur = blur + transmission_blur(roughness_at(scene, mat, uv), mat.ior)
                                 d = d_next
                                 origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
                                 face, u, v = next_hit(scene, origin, d)
@@ -399,6 +409,8 @@ def render_kernel(features):
                             radiance = radiance + wp.cw_mul(throughput, shaded_radiance)
                             throughput = wp.cw_mul(throughput, transmitted(scene, h, mat, uv, n, -d, t))
                             uncovered = 0.0
+                            if wp.static(f.rough_transmission):
+                                blur = blur + transmission_blur(roughness_at(scene, mat, uv), mat.ior)
                             if max_channel(throughput) <= NEGLIGIBLE_THROUGHPUT:
                                 throughput = wp.vec3(0.0)
                                 break
@@ -421,7 +433,18 @@ def render_kernel(features):
                     radiance = radiance + wp.cw_mul(throughput - wp.vec3(uncovered), background)
                 if wp.static(f.environment_background):
                     if throughput[0] + throughput[1] + throughput[2] > 0.0:  # no weight is negative
-                        radiance = radiance + wp.cw_mul(throughput, environment_radiance(env, d))
+                        seen_along = wp.vec3(0.0)
+                        if wp.static(f.rough_transmission):
+                            # the cheap rung of rough transmission: the environment prefiltered
+                            # at the roughness of the surfaces passed (as the glTF Sample Viewer
+                            # blurs its framebuffer); objects seen through them stay sharp
+                            if blur > 0.0:
+                                seen_along = prefiltered_radiance(env, d, blurred_roughness(blur))
+                            else:
+                                seen_along = environment_radiance(env, d)
+                        else:
+                            seen_along = environment_radiance(env, d)
+                        radiance = radiance + wp.cw_mul(throughput, seen_along)
             inv_spp = 1.0 / float(spp)
             alpha = covered * inv_spp
             seen_behind = background * (1.0 - alpha)

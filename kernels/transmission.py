@@ -74,6 +74,24 @@ def transmitted_share(base_color: wp.vec3, metallic: float, transmission: float,
 
 
 @wp.func
+def transmission_blur(roughness: float, ior: float) -> float:
+    """The squared GGX width alpha^2 by which a rough transmissive surface blurs what is seen
+    through it, for the cheap rung: roughness scaled by clamp(2 ior - 2, 0, 1), so that an IOR of
+    1 bends nothing and 1.5 or more the full amount (the Khronos glTF Sample Viewer's
+    applyIorToRoughness), then alpha = roughness^2. The squared widths of successive surfaces
+    add, as the variances of independent small deflections do."""
+    r = roughness * wp.clamp(2.0 * ior - 2.0, 0.0, 1.0)
+    alpha = r * r
+    return alpha * alpha
+
+
+@wp.func
+def blurred_roughness(blur: float) -> float:
+    """The perceptual roughness whose GGX width alpha has alpha^2 = blur."""
+    return wp.sqrt(wp.sqrt(blur))
+
+
+@wp.func
 def beer_lambert(sigma: wp.vec3, distance: float) -> wp.vec3:
     """Transmittance exp(-sigma distance) per channel of a homogeneous absorbing medium
     (Beer-Lambert law; KHR_materials_volume's sigma = -ln(attenuationColor) / attenuationDistance):

@@ -41,6 +41,8 @@ class Features:
     transmission_texture: bool = True
     # KHR_materials_volume: rays refract into closed meshes and are absorbed inside
     volume: bool = True
+    # the environment seen through rough transmissive surfaces is prefiltered (the cheap rung)
+    rough_transmission: bool = True
     normal_mapping: bool = True
     vertex_colors: bool = True
     emission: bool = True
@@ -260,6 +262,14 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     add("volume", volumes, f"rays refract into and out of closed volumes, absorbed inside (KHR_materials_volume: "
         f"{_count(volumes, 'material')})" if volumes else "no volumes: every transmissive surface is thin-walled"
         if transmissive else "no volumes: no transmissive material")
+    rough = sum(1 for m in transmissive if m.roughness > 0.0)
+    environment_shown = next(d.present for d in decisions if d.name == "environment_background")
+    if rough and environment_shown:
+        add("rough_transmission", True, f"the environment seen through rough transmissive surfaces is blurred: "
+            f"prefiltered at their roughness ({_count(rough, 'material')}; cheap rung: objects behind stay sharp)")
+    else:
+        add("rough_transmission", False, "no transmission blur: " + (
+            "misses show the background colour" if rough else "no rough transmissive material"))
     blended = sum(1 for m in mats if m.alpha_mode == "BLEND")
     add("alpha_blend", blended, f"camera rays composite alpha-blended coverage front to back "
         f"({_count(blended, 'material')}; opaque to shadow and environment rays)" if blended

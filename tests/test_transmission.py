@@ -292,9 +292,9 @@ def test_transmission_is_compiled_in_only_when_a_material_transmits():
     assert not features.transmission and not features.volume and not features.transmission_texture
     assert "no transmission: no transmissive material" in pw.explain(opaque)
     scene = pw.Scene()
-    scene.add_mesh(slab(0.6, glass(thickness=1.0, attenuation_color=(0.5, 0.8, 0.9))))
+    scene.add_mesh(slab(0.6, glass(thickness=1.0, attenuation_color=(0.5, 0.8, 0.9), roughness=0.3)))
     scene.add_mesh(quad(size=4.0, z=-0.5, material=glowing()))
-    scene.environment = pw.Environment.uniform(intensity=0.5)
+    scene.environment = pw.Environment.sky()
     features = scene_features(scene, upload(scene), shadows=True, spp=1)
     assert features.transmission and features.volume
     text = pw.explain(scene)
@@ -318,10 +318,14 @@ def test_material_checks_its_transmission_fields():
     assert pw.Material().attenuation_coefficient == (0.0, 0.0, 0.0)
 
 
-def load_transmission_board():
+def load_board_quietly(name):
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # rough transmission is named, and rendered smooth
-        return pw.Scene.load(board("TransmissionTest"))
+        warnings.simplefilter("ignore")  # rough transmission is named (only the environment is blurred)
+        return pw.Scene.load(board(name))
+
+
+def load_transmission_board():
+    return load_board_quietly("TransmissionTest")
 
 
 @pytest.mark.skipif("TransmissionTest" not in BOARDS, reason="TransmissionTest needs PBRWARP_TEST_ASSETS")
@@ -375,3 +379,81 @@ def test_gltf_transmission_and_volume_are_read(tmp_path):
     assert (m.transmission, m.ior, m.thickness, m.attenuation_color, m.attenuation_distance) == (
         pytest.approx(0.8), pytest.approx(1.33), 0.5, (0.5, 0.25, 1.0), 3.0)
     assert m.transmissive and m.see_through
+
+
+def horizon_step():
+    """An environment bright (1 nit) above the horizon and black below."""
+    texels = np.zeros((64, 128, 3), np.float32)
+    texels[:32] = 1.0
+    return pw.Environment(texels)
+
+
+def column_seen_through(roughness, ior=1.5):
+    """The middle column, top to bottom, of a view of the horizon through a thin glass sheet
+    filling it."""
+    scene = pw.Scene()
+    scene.add_mesh(quad(size=4.0, z=0.5, material=glass(roughness=roughness, ior=ior)))
+    scene.environment = horizon_step()
+    frame = render_checked(scene, pw.Camera.look_at(eye=(0, 0, 3), target=(0, 0, 0), fov_y=40.0), size=(5, 61))
+    return frame.rgb[:, 2, 1]
+
+
+def test_rough_transmission_blurs_the_environment_seen_through_it():
+    """Cheap rung: the environment seen through a rough sheet is the prefiltered one at the
+    sheet's roughness (times clamp(2 ior - 2, 0, 1)), so the sharp horizon seen through a smooth
+    sheet spreads over many rows; an IOR of 1 bends nothing and leaves it sharp."""
+    def blurred_rows(column):
+        return int(np.sum((column > 0.05 * column.max()) & (column < 0.95 * column.max())))
+
+    smooth, rough, index_matched = (column_seen_through(0.0), column_seen_through(0.6),
+                                    column_seen_through(0.6, ior=1.0))
+    # seen sharp, the horizon spans the 3 rows of one texel's bilinear ramp (2.8 degrees)
+    assert blurred_rows(smooth) <= 4 and blurred_rows(index_matched) <= 4, (smooth, index_matched)
+    assert blurred_rows(rough) >= 20, rough
+    assert np.all(np.diff(rough) <= 1e-6)  # bright above, dark below: a blur, not noise
+
+
+def test_transmission_blur_is_compiled_in_only_for_rough_transmission_under_an_environment():
+    def features(roughness, background=None):
+        scene = pw.Scene()
+        scene.add_mesh(quad(size=4.0, z=0.5, material=glass(roughness=roughness)))
+        scene.environment = horizon_step()
+        return scene_features(scene, upload(scene), shadows=True, spp=1,
+                              background_given=background is not None).rough_transmission
+    assert features(0.5) and not features(0.0) and not features(0.5, background=(0, 0, 0))
+
+
+@pytest.mark.skipif("AttenuationTest" not in BOARDS, reason="AttenuationTest needs PBRWARP_TEST_ASSETS")
+def test_attenuation_board_shows_one_shade_per_column():
+    """AttenuationTest, viewed face-on: each column of blue glass cubes (thickness by size, by
+    node scale, or by attenuation distance) shows one shade, the one its top row's thin sample
+    emulates with a base colour (its README); ray traced, the cubes also pass the light through a
+    second interface, so they show 1 - F = 0.96 of the sample at normal incidence."""
+    scene = load_board_quietly("AttenuationTest")
+    scene.environment = pw.Environment.uniform(intensity=1.0)
+    size = 600
+    camera = pw.Camera.frame(scene, direction=(0.0, 0.0, 1.0), aspect=1.0)
+    frame = render_checked(scene, camera, size=(size, size))
+    eye, scale = np.asarray(camera.eye), size / 2 / math.tan(math.radians(camera.fov_y) / 2)
+
+    def pixel(x, y, z):
+        return (int(size / 2 + (x - eye[0]) / (eye[2] - z) * scale), int(size / 2 - (y - eye[1]) / (eye[2] - z) * scale))
+
+    columns = {}
+    for prim in scene.primitives:
+        # the middle of each cube's front face (the thickness-texture row is one mesh: skipped)
+        if prim.material.transmission == 0.0 or prim.material.name.startswith("R3"):
+            continue
+        lo, hi = prim.bounds()
+        centre, half = (lo + hi) / 2, (hi - lo) / 2
+        (x0, y0), (x1, y1) = (pixel(centre[0] - 0.4 * half[0], centre[1] + 0.4 * half[1], hi[2]),
+                              pixel(centre[0] + 0.4 * half[0], centre[1] - 0.4 * half[1], hi[2]))
+        shade = np.median(frame.rgb[y0:y1 + 1, x0:x1 + 1].reshape(-1, 3), axis=0)  # past the grid seen through
+        columns.setdefault(round(float(centre[0])), []).append((prim.material.thickness == 0.0, shade))
+    assert len(columns) == 5
+    for cubes in columns.values():
+        sample = [shade for thin, shade in cubes if thin]
+        volumes = [shade for thin, shade in cubes if not thin]
+        assert len(sample) == 1 and len(volumes) >= 3
+        for shade in volumes:
+            np.testing.assert_allclose(shade / sample[0], 0.96, atol=0.03)
