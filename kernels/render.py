@@ -157,6 +157,7 @@ def render_kernel(features):
                     if ls.irradiance == wp.vec3(0.0):
                         continue  # outside a spot's cone: no shadow ray
                 unshadowed = float(1.0)
+                irradiance = ls.irradiance
                 if wp.static(f.shadows == "rays"):
                     cached = int(-1)
                     if i < SHADOW_CACHE_LIGHTS:
@@ -165,7 +166,14 @@ def render_kernel(features):
                     if i < SHADOW_CACHE_LIGHTS:
                         cache[i] = blocker
                     if blocked:
-                        continue
+                        if wp.static(f.transmissive_shadows):
+                            # a transmissive blocker tints the light rather than stopping it
+                            passed = light_passed(scene, i, h, ls)
+                            if max_channel(passed) <= 0.0:
+                                continue
+                            irradiance = wp.cw_mul(irradiance, passed)
+                        else:
+                            continue
                 if wp.static(f.shadows == "map"):
                     unshadowed = shadow_map_visibility(maps, i, scene.lights[i].position, h.p, h.ng)
                     if unshadowed == 0.0:
@@ -180,7 +188,7 @@ def render_kernel(features):
                 else:
                     fr = brdf(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
                               mat.ior_kappa, f0_dielectric)
-                radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
+                radiance = radiance + wp.cw_mul(fr, irradiance) * (n_dot_l * unshadowed)
             if wp.static(bool(ibl)):
                 from_environment = ambient(scene, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
                                            roughness, specular, mat.ior_eta, mat.ior_kappa, f0_dielectric, seed,
@@ -194,6 +202,64 @@ def render_kernel(features):
             scale_material = -1  # the next hit's inputs may differ
         return radiance, cache, scale, scale_material
 
+    @wp.func(inline=True)
+    def shadow_segment(scene: SceneData, light: int, h: SurfaceHit, ls: LightSample):
+        """(origin, direction, max_t) of the shadow ray from the hit to light ``light``: from the
+        offset origin at the light's position, stopping short of it, or along a directional
+        light."""
+        origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
+        direction = ls.to_light
+        max_t = RAY_FAR
+        if ls.distance < RAY_FAR:
+            to_light = scene.lights[light].position - origin
+            direction = safe_normalize(to_light, ls.to_light)
+            max_t = wp.length(to_light) * (1.0 - SHADOW_RAY_SHORTENING)
+        return origin, direction, max_t
+
+    @wp.func
+    def light_passed(scene: SceneData, light: int, h: SurfaceHit, ls: LightSample) -> wp.vec3:
+        """The share of light ``light`` that reaches the hit through the transmissive surfaces on
+        its shadow ray, 0 if an opaque one blocks it: straight through, each surface passing its
+        transmitted share at the ray's incidence (base colour, 1 - F), volumes absorbing by
+        Beer-Lambert along the chord and passing 1 - F of the exact Fresnel where the ray leaves
+        them. Without refraction the light's path is the straight one: exact through smooth thin
+        walls, an approximation through volumes (no caustics). After MAX_PASS_THROUGH surfaces
+        the next one counts as opaque."""
+        origin, direction, reach = shadow_segment(scene, light, h, ls)
+        passed = wp.vec3(1.0)
+        sigma = wp.vec3(0.0)
+        for _ in range(MAX_PASS_THROUGH):
+            q = wp.mesh_query_ray(scene.mesh, origin, direction, reach)
+            if not q.result:
+                return passed
+            blocker = surface_hit(scene, q.face, q.u, q.v, direction)
+            mat = scene.materials[blocker.material]
+            uv = hit_uv(scene, blocker)
+            if wp.static(f.volume):
+                if max_channel(sigma) > 0.0:
+                    passed = wp.cw_mul(passed, beer_lambert(sigma, q.t))
+            if not is_cut_out(scene, blocker, mat, uv):
+                t = transmission_at(scene, mat, uv)
+                if t <= 0.0:
+                    return wp.vec3(0.0)
+                cos_i = wp.dot(blocker.ng, -direction)  # ng is turned towards the ray
+                leaves_volume = False
+                if wp.static(f.volume):
+                    leaves_volume = blocker.back_face == 1 and mat.thickness > 0.0
+                if leaves_volume:
+                    passed = passed * (1.0 - fresnel_dielectric(cos_i, 1.0 / mat.ior))
+                    sigma = wp.vec3(0.0)
+                else:
+                    passed = wp.cw_mul(passed, transmitted(scene, blocker, mat, uv, blocker.ng, -direction, t))
+                    if wp.static(f.volume):
+                        if mat.thickness > 0.0:
+                            sigma = mat.attenuation
+                if max_channel(passed) <= NEGLIGIBLE_THROUGHPUT:
+                    return wp.vec3(0.0)
+            origin = offset_ray_origin(blocker.p, blocker.p_error, blocker.ng, direction)
+            reach = reach - q.t
+        return wp.vec3(0.0)
+
     # inlined: a call would copy the scene's and the light buffers' structs (~1 KB) per shadow ray
     @wp.func(inline=True)
     def shadow_ray_occluded(scene: SceneData, buffers: LightBuffers, light: int, h: SurfaceHit, ls: LightSample,
@@ -205,15 +271,8 @@ def render_kernel(features):
         buffer cannot."""
         if ray_leaves_clear(buffers, light, h.face, h.b0, h.b1, h.b2):
             return False, -1
-        origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
-        direction = ls.to_light
-        max_t = RAY_FAR
+        origin, direction, max_t = shadow_segment(scene, light, h, ls)
         position = scene.lights[light].position
-        if ls.distance < RAY_FAR:
-            to_light = position - origin
-            distance = wp.length(to_light)
-            direction = safe_normalize(to_light, ls.to_light)
-            max_t = distance * (1.0 - SHADOW_RAY_SHORTENING)
         verdict = UNDECIDED
         blocker = int(-1)
         if cached >= 0:

@@ -43,6 +43,8 @@ class Features:
     volume: bool = True
     # the environment seen through rough transmissive surfaces is prefiltered (the cheap rung)
     rough_transmission: bool = True
+    # shadow rays pass transmissive surfaces, tinted
+    transmissive_shadows: bool = True
     normal_mapping: bool = True
     vertex_colors: bool = True
     emission: bool = True
@@ -252,7 +254,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
             else "no cut-outs in occlusion rays: no alpha-masked material")
     transmissive = [m for m in mats if m.transmissive and not m.unlit]
     add("transmission", transmissive, f"camera rays pass through smooth transmissive surfaces "
-        f"(KHR_materials_transmission: {_count(len(transmissive), 'material')}; opaque to shadow rays)"
+        f"(KHR_materials_transmission: {_count(len(transmissive), 'material')})"
         if transmissive else "no transmission: no transmissive material")
     present, why = slot("transmission_texture", "transmission texture")
     if present and not transmissive:
@@ -262,6 +264,14 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     add("volume", volumes, f"rays refract into and out of closed volumes, absorbed inside (KHR_materials_volume: "
         f"{_count(volumes, 'material')})" if volumes else "no volumes: every transmissive surface is thin-walled"
         if transmissive else "no volumes: no transmissive material")
+    traced_shadows = next(d.present for d in decisions if d.name == "shadows") == "rays"
+    if transmissive and traced_shadows:
+        add("transmissive_shadows", True, "shadow rays pass transmissive surfaces, tinted by what they transmit "
+            "(straight, without refraction)")
+    else:
+        add("transmissive_shadows", False, "no tinted shadows: " + (
+            "no shadow rays" if transmissive else "no transmissive material")
+            + ("" if traced_shadows or not transmissive else " (shadow maps and environment rays treat glass as opaque)"))
     rough = sum(1 for m in transmissive if m.roughness > 0.0)
     environment_shown = next(d.present for d in decisions if d.name == "environment_background")
     if rough and environment_shown:

@@ -457,3 +457,41 @@ def test_attenuation_board_shows_one_shade_per_column():
         assert len(sample) == 1 and len(volumes) >= 3
         for shade in volumes:
             np.testing.assert_allclose(shade / sample[0], 0.96, atol=0.03)
+
+
+# ---------------------------------------------------------------------------- shadows
+E = 3.0
+WHITE = dict(base_color=(1.0, 1.0, 1.0), metallic=0.0, roughness=1.0, specular=0.0)
+
+
+def floor_under(blocker):
+    """A white Lambert floor at z = 0 lit straight down (along -z) by E lux, ``blocker`` above
+    it, seen from below the blocker: the floor's radiance."""
+    scene = pw.Scene()
+    scene.add_mesh(quad(size=20.0, z=0.0, material=pw.Material(**WHITE)))
+    scene.add_mesh(blocker)
+    scene.add_light(pw.DirectionalLight(direction=(0.0, 0.0, -1.0), intensity=E))
+    camera = pw.Camera.look_at(eye=(0.0, 0.0, 0.4), target=(0.0, 0.0, 0.0), fov_y=20.0)
+    return render_checked(scene, camera, size=(9, 9)).rgb
+
+
+def test_a_glass_sheet_casts_a_tinted_shadow():
+    """Under a smooth thin sheet, the floor gets (1 - F) base colour of the light, F = 0.04 at
+    normal incidence: E / pi * 0.96 * base colour."""
+    rgb = floor_under(quad(size=20.0, z=1.0, material=glass(base_color=TINT)))
+    np.testing.assert_allclose(rgb.reshape(-1, 3), np.broadcast_to(E / math.pi * 0.96 * np.array(TINT), (81, 3)),
+                               rtol=1e-5)
+
+
+def test_a_glass_volume_casts_a_shadow_absorbed_along_its_chord():
+    """Under a glass box 0.6 thick: E / pi * 0.96 * exp(-sigma 0.6) * 0.96."""
+    colour, distance = np.array([0.5, 0.8, 0.95]), 1.0
+    rgb = floor_under(slab(0.6, glass(thickness=1.0, attenuation_color=tuple(colour), attenuation_distance=distance),
+                           z_top=2.0, size=20.0))
+    expected = E / math.pi * 0.96 * np.exp(np.log(colour) / distance * 0.6) * 0.96
+    np.testing.assert_allclose(rgb.reshape(-1, 3), np.broadcast_to(expected, (81, 3)), rtol=1e-4)
+
+
+def test_an_opaque_sheet_still_shadows_fully_and_a_metal_one_too():
+    assert np.all(floor_under(quad(size=20.0, z=1.0, material=pw.Material())) == 0.0)
+    assert np.all(floor_under(quad(size=20.0, z=1.0, material=glass(metallic=1.0))) == 0.0)
