@@ -15,16 +15,17 @@ EXT_mesh_gpu_instancing, whose instances are expanded into copies; PNG and JPEG 
 WebP, GIF, BMP, TGA); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
 with alphaMode OPAQUE, MASK and BLEND; KHR_texture_transform, KHR_materials_specular,
 KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_materials_transmission
-and KHR_materials_volume (smooth transmission), KHR_lights_punctual
-(but ``range``); perspective cameras.
+(but the blur of rough surfaces on what is seen through them), KHR_materials_volume,
+KHR_lights_punctual (but ``range``); perspective cameras.
 
 Everything else a file asks for is named in a warning at load, once per kind ("KHR_materials_sheen
 on 3 materials ('cloth', ...) ignored: rendered without sheen"), saying what is rendered instead,
 and kept in ``GltfContent.load_warnings`` (``Scene.load_warnings``, listed by ``pw.explain``): the
 extensions ``_EXTENSIONS`` marks IGNORED and unknown ones, TEXCOORD_1 and above (sampled as
 TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification, light ``range``,
-animations (the nodes' stored static pose is shown), points and
-lines (skipped), cameras other than perspective (skipped) and scenes other than the default.
+rough transmissive materials (only the environment seen through them is blurred), animations
+(the nodes' stored static pose is shown), points and lines (skipped), cameras other than
+perspective (skipped) and scenes other than the default.
 pbrwarp/gltf_notes.py makes the notes (the reader adds the ones it can only make where it reads:
 TEXCOORD_n, camera types, morph target attributes). An IGNORED extension listed in
 ``extensionsRequired`` is an error, as glTF asks.
