@@ -21,7 +21,8 @@ from .robust import RAY_FAR, clamp_to_float32_max, SHADOW_RAY_SHORTENING, offset
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
-from .transmission import (beer_lambert, blurred_roughness, refract_through, transmission_blur,
+from .transmission import (TRANSMISSION_STREAM, beer_lambert, blurred_roughness, refract_through,
+                           sample_rough_interface, sample_thin_lobe, transmission_blur, transmission_roughness,
                            transmitted_share)
 from .work_queue import read_counter, take_next_item_from
 from .surface import MAX_PASS_THROUGH, NEGLIGIBLE_THROUGHPUT, SurfaceHit, interpolate, surface_hit, surface_tests, texture_or_one
@@ -393,6 +394,7 @@ def render_kernel(features):
                 sigma = wp.vec3(0.0)
                 # the squared GGX width rough transmissive surfaces blur the environment by
                 blur = float(0.0)
+                lobe_state = wp.rand_init(pixel_seed, TRANSMISSION_STREAM + s)
                 hits_before = hits
                 face, u, v = primary_hit(scene, seen, origin, d)
                 for _ in range(MAX_PASS_THROUGH):
@@ -409,13 +411,21 @@ def render_kernel(features):
                                 # leaving a volume (whatever double_sided says): a bare interface, as
                                 # lights outside do not shade it; its partial reflection is dropped
                                 eta = 1.0 / mat.ior
-                                refracts, d_next, bent_by = refract_through(d, shading_normal(scene, h, mat, uv),
-                                                                            h.ng, eta)
+                                n_exit = shading_normal(scene, h, mat, uv)
+                                refracts, d_next, bent_by = refract_through(d, n_exit, h.ng, eta)
+                                if wp.static(f.rough_transmission == "sampled"):
+                                    rough = roughness_at(scene, mat, uv)
+                                    if rough > 0.0:
+                                        u2 = wp.vec2(wp.randf(lobe_state), wp.randf(lobe_state))
+                                        refracts, d_next, lobe_weight = sample_rough_interface(d, n_exit, h.ng, eta,
+                                                                                               rough, u2)
+                                        throughput = throughput * lobe_weight
+                                        bent_by = n_exit
                                 if refracts:
                                     fresnel = fresnel_dielectric(wp.dot(bent_by, -d), eta)
                                     throughput = throughput * (1.0 - fresnel)
                                     sigma = wp.vec3(0.0)
-                                    if wp.static(f.rough_transmission):
+                                    if wp.static(f.rough_transmission == "prefiltered"):
                                         blur = blur + transmission_blur(roughness_at(scene, mat, uv), mat.ior)
                                 d = d_next
                                 origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
@@ -468,16 +478,38 @@ def render_kernel(features):
                             radiance = radiance + wp.cw_mul(throughput, shaded_radiance)
                             throughput = wp.cw_mul(throughput, transmitted(scene, h, mat, uv, n, -d, t))
                             uncovered = 0.0
-                            if wp.static(f.rough_transmission):
+                            if wp.static(f.rough_transmission == "prefiltered"):
                                 blur = blur + transmission_blur(roughness_at(scene, mat, uv), mat.ior)
                             if max_channel(throughput) <= NEGLIGIBLE_THROUGHPUT:
                                 throughput = wp.vec3(0.0)
                                 break
+                            thick = False
+                            bent = False  # whether d_next replaces d
+                            d_next = d
                             if wp.static(f.volume):
-                                if mat.thickness > 0.0:
+                                thick = mat.thickness > 0.0
+                                if thick:
                                     refracts, d_next, bent_by = refract_through(d, n, h.ng, mat.ior)
-                                    d = d_next
                                     sigma = mat.attenuation
+                                    bent = True
+                            if wp.static(f.rough_transmission == "sampled"):
+                                rough = roughness_at(scene, mat, uv)
+                                if rough > 0.0:
+                                    # the exact rung: a draw of the GGX transmission lobe, refracted
+                                    # into a volume (Walter et al. 2007) or through a thin wall (the
+                                    # specular lobe seen through it, as the extension defines)
+                                    u1 = wp.vec2(wp.randf(lobe_state), wp.randf(lobe_state))
+                                    lobe_weight = float(1.0)
+                                    if thick:
+                                        inward, d_next, lobe_weight = sample_rough_interface(d, n, h.ng, mat.ior, rough,
+                                                                                             u1)
+                                    else:
+                                        d_next, lobe_weight = sample_thin_lobe(d, n, h.ng,
+                                                                               transmission_roughness(rough, mat.ior), u1)
+                                    throughput = throughput * lobe_weight
+                                    bent = True
+                            if bent:
+                                d = d_next
                             origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
                             face, u, v = next_hit(scene, origin, d)
                             continue
@@ -493,7 +525,7 @@ def render_kernel(features):
                 if wp.static(f.environment_background):
                     if throughput[0] + throughput[1] + throughput[2] > 0.0:  # no weight is negative
                         seen_along = wp.vec3(0.0)
-                        if wp.static(f.rough_transmission):
+                        if wp.static(f.rough_transmission == "prefiltered"):
                             # the cheap rung of rough transmission: the environment prefiltered
                             # at the roughness of the surfaces passed (as the glTF Sample Viewer
                             # blurs its framebuffer); objects seen through them stay sharp

@@ -11,7 +11,13 @@ enters over that of the side it leaves (ior entering glass from air, 1 / ior lea
 import warp as wp
 
 from .brdf import F_Schlick, dielectric_specular_f0, max_channel
+from .direction_sampling import G1_SmithGGX, orthonormal_basis, sample_ggx_vndf
+from .microfacet import alpha_from_roughness
 from .robust import safe_normalize
+
+# Offset of the random streams of rough transmission's samples (kernels/ambient.py's
+# ENVIRONMENT_STREAM is 2^24): one stream per camera sample.
+TRANSMISSION_STREAM = wp.constant(1 << 25)
 
 wp.set_module_options({"enable_backward": False})
 
@@ -62,6 +68,55 @@ def refract_through(d: wp.vec3, n: wp.vec3, ng: wp.vec3, eta: float):
 
 
 @wp.func
+def sample_rough_interface(d: wp.vec3, n: wp.vec3, ng: wp.vec3, eta: float, roughness: float, u: wp.vec2):
+    """(whether the ray refracts, its new direction, its weight): one draw of the GGX transmission
+    lobe of a rough interface (Walter, Marschner, Li and Torrance 2007) for a ray of direction
+    ``d`` meeting it, normals ``n`` (shading) and ``ng`` turned towards where it comes from. A
+    microfacet normal m is drawn from the normals visible from -d (Heitz 2018), and the ray
+    refracts through m, or reflects off it on total internal reflection. Drawn so, the lobe's
+    D, G1(v) and Jacobian cancel against the pdf, leaving the masking G1 of the new direction as
+    the weight (the separable Smith G; the Fresnel weight is the caller's). The weight is 0
+    where the new direction falls on the wrong side of the geometric surface."""
+    frame = orthonormal_basis(n)
+    v_local = wp.transpose(frame) * (-d)
+    if v_local[2] <= 0.0:  # seen from below its shading normal: bent as by a smooth interface
+        refracts, direction, bent_by = refract_through(d, n, ng, eta)
+        return refracts, direction, 1.0
+    alpha = alpha_from_roughness(roughness)
+    m = frame * sample_ggx_vndf(v_local, alpha, u)
+    refracts, direction = refract(-d, m, eta)
+    if not refracts:
+        direction = reflect(-d, m)
+    side = wp.dot(direction, ng)
+    if (refracts and side >= 0.0) or ((not refracts) and side <= 0.0):
+        return refracts, direction, 0.0
+    return refracts, direction, G1_SmithGGX(wp.abs(wp.dot(direction, n)), alpha)
+
+
+@wp.func
+def sample_thin_lobe(d: wp.vec3, n: wp.vec3, ng: wp.vec3, roughness: float, u: wp.vec2):
+    """(new direction, weight): one draw of a rough thin wall's transmission lobe, which
+    KHR_materials_transmission defines as the specular lobe "sampled along the line of sight
+    through the surface": a reflection off a microfacet normal drawn from those visible from -d
+    (Heitz 2018), mirrored through the surface's plane. Weight G1 of the reflected direction (as
+    for sample_rough_interface), 0 where it would leave on the wrong side. ``roughness`` is the
+    lobe's, transmission_roughness of the material's; 0 gives d itself."""
+    frame = orthonormal_basis(n)
+    v_local = wp.transpose(frame) * (-d)
+    if v_local[2] <= 0.0 or roughness <= 0.0:
+        return d, 1.0
+    alpha = alpha_from_roughness(roughness)
+    l = reflect(-d, frame * sample_ggx_vndf(v_local, alpha, u))
+    l_dot_n = wp.dot(l, n)
+    if l_dot_n <= 0.0:
+        return d, 0.0
+    through = l - 2.0 * l_dot_n * n
+    if wp.dot(through, ng) >= 0.0:
+        return d, 0.0
+    return through, G1_SmithGGX(l_dot_n, alpha)
+
+
+@wp.func
 def transmitted_share(base_color: wp.vec3, metallic: float, transmission: float, specular: float,
                       f0_dielectric: wp.vec3, n_dot_v: float) -> wp.vec3:
     """The share of light a smooth surface transmits, per channel: glTF's dielectric BRDF with
@@ -74,13 +129,19 @@ def transmitted_share(base_color: wp.vec3, metallic: float, transmission: float,
 
 
 @wp.func
+def transmission_roughness(roughness: float, ior: float) -> float:
+    """The roughness of a thin wall's transmission lobe: the material's scaled by
+    clamp(2 ior - 2, 0, 1), so that an IOR of 1 bends nothing and 1.5 or more the full amount
+    (the Khronos glTF Sample Viewer's applyIorToRoughness)."""
+    return roughness * wp.clamp(2.0 * ior - 2.0, 0.0, 1.0)
+
+
+@wp.func
 def transmission_blur(roughness: float, ior: float) -> float:
     """The squared GGX width alpha^2 by which a rough transmissive surface blurs what is seen
-    through it, for the cheap rung: roughness scaled by clamp(2 ior - 2, 0, 1), so that an IOR of
-    1 bends nothing and 1.5 or more the full amount (the Khronos glTF Sample Viewer's
-    applyIorToRoughness), then alpha = roughness^2. The squared widths of successive surfaces
-    add, as the variances of independent small deflections do."""
-    r = roughness * wp.clamp(2.0 * ior - 2.0, 0.0, 1.0)
+    through it, for the cheap rung: alpha = transmission_roughness^2. The squared widths of
+    successive surfaces add, as the variances of independent small deflections do."""
+    r = transmission_roughness(roughness, ior)
     alpha = r * r
     return alpha * alpha
 

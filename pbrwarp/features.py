@@ -41,8 +41,9 @@ class Features:
     transmission_texture: bool = True
     # KHR_materials_volume: rays refract into closed meshes and are absorbed inside
     volume: bool = True
-    # the environment seen through rough transmissive surfaces is prefiltered (the cheap rung)
-    rough_transmission: bool = True
+    # rough transmission: "prefiltered" (the environment seen through is blurred; the cheap rung),
+    # "sampled" (the GGX transmission lobe sampled per camera sample; the exact rung) or False
+    rough_transmission: object = "prefiltered"
     # shadow rays pass transmissive surfaces, tinted
     transmissive_shadows: bool = True
     normal_mapping: bool = True
@@ -89,7 +90,8 @@ class Features:
         reference for specialization. Sampling, outputs, BRDF, the shadow technique, the IBL rungs
         and what misses show follow the options."""
         return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, shadows=shadow_mode(shadows)[0], environment=ibl,
-                   environment_background=environment_background)
+                   environment_background=environment_background,
+                   rough_transmission="sampled" if ibl.method == "monte_carlo" else "prefiltered")
 
 
 @dataclass(frozen=True)
@@ -274,9 +276,15 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
             + ("" if traced_shadows or not transmissive else " (shadow maps and environment rays treat glass as opaque)"))
     rough = sum(1 for m in transmissive if m.roughness > 0.0)
     environment_shown = next(d.present for d in decisions if d.name == "environment_background")
-    if rough and environment_shown:
-        add("rough_transmission", True, f"the environment seen through rough transmissive surfaces is blurred: "
-            f"prefiltered at their roughness ({_count(rough, 'material')}; cheap rung: objects behind stay sharp)")
+    lighting = next(d.present for d in decisions if d.name == "environment")
+    if rough and lighting and lighting.method == "monte_carlo":
+        decisions.append(Decision("rough_transmission", "sampled", "rough transmission samples the GGX transmission "
+                                  f"lobe per camera sample ({_count(rough, 'material')}; the exact rung, with Monte "
+                                  "Carlo environment lighting: what lies behind is blurred, with noise)"))
+    elif rough and environment_shown:
+        decisions.append(Decision("rough_transmission", "prefiltered", "the environment seen through rough "
+                                  f"transmissive surfaces is blurred: prefiltered at their roughness "
+                                  f"({_count(rough, 'material')}; cheap rung: objects behind stay sharp)"))
     else:
         add("rough_transmission", False, "no transmission blur: " + (
             "misses show the background colour" if rough else "no rough transmissive material"))

@@ -23,7 +23,7 @@ on 3 materials ('cloth', ...) ignored: rendered without sheen"), saying what is 
 and kept in ``GltfContent.load_warnings`` (``Scene.load_warnings``, listed by ``pw.explain``): the
 extensions ``_EXTENSIONS`` marks IGNORED and unknown ones, TEXCOORD_1 and above (sampled as
 TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification, light ``range``,
-rough transmissive materials (only the environment seen through them is blurred), animations
+rough transmissive materials (by default only the environment seen through them is blurred), animations
 (the nodes' stored static pose is shown), points and lines (skipped), cameras other than
 perspective (skipped) and scenes other than the default.
 pbrwarp/gltf_notes.py makes the notes (the reader adds the ones it can only make where it reads:

@@ -41,7 +41,7 @@ _EXTENSIONS = {
     "KHR_materials_iridescence": (IGNORED, "rendered without the thin-film colours"),
     "KHR_materials_pbrSpecularGlossiness": (IGNORED, "rendered with the material's metallic-roughness values"),
     "KHR_materials_sheen": (IGNORED, "rendered without sheen (fabrics look darker than they should)"),
-    "KHR_materials_transmission": (PARTLY, "objects seen through rough surfaces are not blurred (the environment is)"),
+    "KHR_materials_transmission": (PARTLY, "objects seen through rough surfaces are not blurred but by the exact rung"),
     "KHR_materials_unlit": (HONOURED, ""),
     "KHR_materials_variants": (IGNORED, "each primitive shows its default material"),
     "KHR_materials_volume": (HONOURED, ""),
@@ -233,8 +233,8 @@ def _note_light_ranges(doc):
 
 
 def _note_rough_transmission(doc):
-    """Transmissive materials whose roughness is not 0: pbrwarp blurs only the environment seen
-    through them (the cheap rung, docs/materials.md "Transmission")."""
+    """Transmissive materials whose roughness is not 0: the default rung blurs only the
+    environment seen through them (docs/materials.md "Transmission")."""
     for index, material in _elements(doc, "materials"):
         extensions = material.get("extensions")
         transmission = extensions.get("KHR_materials_transmission") if isinstance(extensions, dict) else None
@@ -244,5 +244,5 @@ def _note_rough_transmission(doc):
         pbr = pbr if isinstance(pbr, dict) else {}
         if pbr.get("roughnessFactor", 1.0) != 0.0:
             doc.notes.add("rough transmission", "objects seen through {subjects} with roughness above 0 not blurred "
-                          "(KHR_materials_transmission): only the environment seen through them is", "material",
-                          index, _ident(material, index))
+                          "(KHR_materials_transmission): only the environment seen through them is, but with Monte "
+                          "Carlo environment lighting (quality='reference')", "material", index, _ident(material, index))

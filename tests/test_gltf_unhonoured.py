@@ -115,7 +115,7 @@ def test_ignored_material_extension_is_named_with_what_is_rendered_instead(tmp_p
     # core glTF that pbrwarp does not honour
     (materials({"name": "frosted", "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}}),
      r"objects seen through material 'frosted' with roughness above 0 not blurred \(KHR_materials_transmission\): "
-     r"only the environment seen through them is"),
+     r"only the environment seen through them is, but with Monte Carlo environment lighting"),
     (lambda b: b.json.update(animations=[{"name": "spin", "channels": [], "samplers": []}]),
      r"animation 'spin' not played: the static pose the nodes store \(their transforms and morph weights\) is shown"),
     (lambda b: add_morph_target(b, mesh_weights=[0.5], attribute="TEXCOORD_0"),
