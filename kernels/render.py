@@ -9,8 +9,8 @@ import warp as wp
 
 from .ambient import ambient_for
 from .anisotropy import anisotropy_direction
-from .brdf import albedo_coupled_brdf_for, brdf_for
-from .ibl import EnvironmentData, environment_radiance
+from .brdf import albedo_coupled_brdf_for, brdf_for, fresnel_dielectric, max_channel
+from .ibl import EnvironmentData, environment_radiance, prefiltered_radiance
 from .camera import CameraData, camera_ray_direction
 from .clearcoat import Coat, clearcoat_for
 from .light_buffer import LightBuffers
@@ -24,8 +24,11 @@ from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
 from .sheen import Sheen, sheen_for
+from .transmission import (TRANSMISSION_STREAM, beer_lambert, blurred_roughness, refract_through,
+                           sample_rough_interface, sample_thin_lobe, transmission_blur, transmission_roughness,
+                           transmitted_share)
 from .work_queue import read_counter, take_next_item_from
-from .surface import MAX_PASS_THROUGH, SurfaceHit, interpolate, surface_hit, surface_tests
+from .surface import MAX_PASS_THROUGH, NEGLIGIBLE_THROUGHPUT, SurfaceHit, interpolate, surface_hit, surface_tests
 from .texture_coords import SurfaceUV, texture_lookups
 from .visibility_buffer import visible_triangle
 
@@ -59,8 +62,8 @@ def render_kernel(features):
     lit = f.point_lights or f.directional_lights or f.spot_lights
     ibl = f.environment
     shaded = lit or bool(ibl)
-    hit_uv, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion,
-                                                    f.second_uv_set)
+    hit_uv, alpha_at, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture,
+                                                              f.masked_occlusion, f.second_uv_set)
     # the pixel footprint (ray differentials) is computed only for trilinear filtering
     footprint = textured and f.texture_filter == "trilinear"
     hit_texcoords, texture = texture_lookups(textured, footprint, f.second_uv_set)
@@ -135,6 +138,47 @@ def render_kernel(features):
         return wp.vec3(strength, mat.iridescence_ior, thickness)
 
     @wp.func
+    def surface_inputs(scene: SceneData, mat: MaterialData, uv: SurfaceUV):
+        """(metallic, roughness, specular, f0_dielectric) at the hit: the factors times their
+        textures."""
+        metallic = mat.metallic
+        roughness = mat.roughness
+        specular = mat.specular
+        f0_dielectric = mat.f0_dielectric
+        if wp.static(f.metallic_roughness_texture):
+            mr = texture(scene, mat.metallic_roughness_texture, uv)
+            roughness = roughness * mr[1]
+            metallic = metallic * mr[2]
+        if wp.static(f.specular_texture):
+            specular = specular * texture(scene, mat.specular_texture, uv)[3]
+        if wp.static(f.specular_color_texture):
+            sc = texture(scene, mat.specular_color_texture, uv)
+            f0_dielectric = wp.cw_mul(f0_dielectric, wp.vec3(sc[0], sc[1], sc[2]))
+        return metallic, roughness, specular, f0_dielectric
+
+    @wp.func
+    def roughness_at(scene: SceneData, mat: MaterialData, uv: SurfaceUV) -> float:
+        metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
+        return roughness
+
+    @wp.func
+    def transmission_at(scene: SceneData, mat: MaterialData, uv: SurfaceUV) -> float:
+        """KHR_materials_transmission's share at the hit: its factor times the texture's R."""
+        t = mat.transmission
+        if wp.static(f.transmission_texture):
+            if t > 0.0:
+                t = t * texture(scene, mat.transmission_texture, uv)[0]
+        return t
+
+    @wp.func
+    def transmitted(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV, n: wp.vec3, v: wp.vec3,
+                    t: float) -> wp.vec3:
+        """The share of the light behind the surface that passes through it towards v."""
+        metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
+        return transmitted_share(base_color_at(scene, h, mat, uv), metallic, t, specular, f0_dielectric,
+                                 wp.max(wp.dot(n, v), 0.0))
+
+    @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
               dfg: wp.array2d(dtype=wp.vec2), h: SurfaceHit, mat: MaterialData, uv: SurfaceUV, view: wp.vec3,
               n: wp.vec3, seed: int, stream: int, cache: ShadowCache, scale: wp.vec3, scale_material: int):
@@ -161,19 +205,10 @@ def render_kernel(features):
                 radiance = wp.cw_mul(radiance, wp.vec3(em[0], em[1], em[2]))
         if wp.static(shaded):
             base = base_color_at(scene, h, mat, uv)
-            metallic = mat.metallic
-            roughness = mat.roughness
-            specular = mat.specular
-            f0_dielectric = mat.f0_dielectric
-            if wp.static(f.metallic_roughness_texture):
-                mr = texture(scene, mat.metallic_roughness_texture, uv)
-                roughness = roughness * mr[1]
-                metallic = metallic * mr[2]
-            if wp.static(f.specular_texture):
-                specular = specular * texture(scene, mat.specular_texture, uv)[3]
-            if wp.static(f.specular_color_texture):
-                sc = texture(scene, mat.specular_color_texture, uv)
-                f0_dielectric = wp.cw_mul(f0_dielectric, wp.vec3(sc[0], sc[1], sc[2]))
+            metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
+            if wp.static(f.transmission):
+                # the diffuse lobe keeps what transmission leaves (KHR_materials_transmission)
+                base = base * (1.0 - transmission_at(scene, mat, uv))
             aniso_t = wp.vec3(0.0)
             anisotropy = float(0.0)
             if wp.static(f.anisotropy):
@@ -196,6 +231,7 @@ def render_kernel(features):
                     if ls.irradiance == wp.vec3(0.0):
                         continue  # outside a spot's cone: no shadow ray
                 unshadowed = float(1.0)
+                irradiance = ls.irradiance
                 if wp.static(f.shadows == "rays"):
                     cached = int(-1)
                     if i < SHADOW_CACHE_LIGHTS:
@@ -204,7 +240,14 @@ def render_kernel(features):
                     if i < SHADOW_CACHE_LIGHTS:
                         cache[i] = blocker
                     if blocked:
-                        continue
+                        if wp.static(f.transmissive_shadows):
+                            # a transmissive blocker tints the light rather than stopping it
+                            passed = light_passed(scene, i, h, ls)
+                            if max_channel(passed) <= 0.0:
+                                continue
+                            irradiance = wp.cw_mul(irradiance, passed)
+                        else:
+                            continue
                 if wp.static(f.shadows == "map"):
                     unshadowed = shadow_map_visibility(maps, i, scene.lights[i].position, h.p, h.ng)
                     if unshadowed == 0.0:
@@ -221,9 +264,9 @@ def render_kernel(features):
                               mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film)
                 if wp.static(f.sheen):  # KHR_materials_sheen's albedo scaling
                     fr = fr * sheen_scaling(sheen, ls.to_light) + sheen_brdf(sheen, view, ls.to_light)
-                radiance = radiance + wp.cw_mul(fr, ls.irradiance) * (n_dot_l * unshadowed)
+                radiance = radiance + wp.cw_mul(fr, irradiance) * (n_dot_l * unshadowed)
                 if wp.static(f.clearcoat):
-                    coat_radiance = coat_radiance + ls.irradiance * (clearcoat_brdf(coat, view, ls.to_light)
+                    coat_radiance = coat_radiance + irradiance * (clearcoat_brdf(coat, view, ls.to_light)
                                                                      * wp.dot(coat.normal, ls.to_light) * unshadowed)
             if wp.static(bool(ibl)):
                 from_environment = ambient(scene, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
@@ -248,6 +291,66 @@ def render_kernel(features):
             scale_material = -1  # the next hit's inputs may differ
         return radiance, cache, scale, scale_material
 
+    @wp.func(inline=True)
+    def shadow_segment(scene: SceneData, light: int, h: SurfaceHit, ls: LightSample):
+        """(origin, direction, max_t) of the shadow ray from the hit to light ``light``: from the
+        offset origin at the light's position, stopping short of it, or along a directional
+        light."""
+        origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
+        direction = ls.to_light
+        max_t = RAY_FAR
+        if ls.distance < RAY_FAR:
+            to_light = scene.lights[light].position - origin
+            direction = safe_normalize(to_light, ls.to_light)
+            max_t = wp.length(to_light) * (1.0 - SHADOW_RAY_SHORTENING)
+        return origin, direction, max_t
+
+    @wp.func
+    def light_passed(scene: SceneData, light: int, h: SurfaceHit, ls: LightSample) -> wp.vec3:
+        """The share of light ``light`` that reaches the hit through the transmissive surfaces on
+        its shadow ray, 0 if an opaque one blocks it: straight through, each surface passing its
+        transmitted share at the ray's incidence (base colour, 1 - F), volumes absorbing by
+        Beer-Lambert along the chord and passing 1 - F of the exact Fresnel where the ray leaves
+        them. Without refraction the light's path is the straight one: exact through smooth thin
+        walls, an approximation through volumes (no caustics). After MAX_PASS_THROUGH surfaces
+        the next one counts as opaque."""
+        origin, direction, reach = shadow_segment(scene, light, h, ls)
+        passed = wp.vec3(1.0)
+        sigma = wp.vec3(0.0)
+        for _ in range(MAX_PASS_THROUGH):
+            q = wp.mesh_query_ray(scene.mesh, origin, direction, reach)
+            if not q.result:
+                return passed
+            blocker = surface_hit(scene, q.face, q.u, q.v, direction)
+            mat = scene.materials[blocker.material]
+            uv0 = hit_uv(scene, blocker)
+            # a shadow ray has no footprint: its differentials are itself, textures read at level 0
+            uv = hit_texcoords(scene, blocker, uv0, origin, direction, direction)
+            if wp.static(f.volume):
+                if max_channel(sigma) > 0.0:
+                    passed = wp.cw_mul(passed, beer_lambert(sigma, q.t))
+            if not is_cut_out(scene, blocker, mat, uv0):
+                t = transmission_at(scene, mat, uv)
+                if t <= 0.0:
+                    return wp.vec3(0.0)
+                cos_i = wp.dot(blocker.ng, -direction)  # ng is turned towards the ray
+                leaves_volume = False
+                if wp.static(f.volume):
+                    leaves_volume = blocker.back_face == 1 and mat.thickness > 0.0
+                if leaves_volume:
+                    passed = passed * (1.0 - fresnel_dielectric(cos_i, 1.0 / mat.ior))
+                    sigma = wp.vec3(0.0)
+                else:
+                    passed = wp.cw_mul(passed, transmitted(scene, blocker, mat, uv, blocker.ng, -direction, t))
+                    if wp.static(f.volume):
+                        if mat.thickness > 0.0:
+                            sigma = mat.attenuation
+                if max_channel(passed) <= NEGLIGIBLE_THROUGHPUT:
+                    return wp.vec3(0.0)
+            origin = offset_ray_origin(blocker.p, blocker.p_error, blocker.ng, direction)
+            reach = reach - q.t
+        return wp.vec3(0.0)
+
     # inlined: a call would copy the scene's and the light buffers' structs (~1 KB) per shadow ray
     @wp.func(inline=True)
     def shadow_ray_occluded(scene: SceneData, buffers: LightBuffers, light: int, h: SurfaceHit, ls: LightSample,
@@ -259,15 +362,8 @@ def render_kernel(features):
         buffer cannot."""
         if ray_leaves_clear(buffers, light, h.face, h.b0, h.b1, h.b2):
             return False, -1
-        origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
-        direction = ls.to_light
-        max_t = RAY_FAR
+        origin, direction, max_t = shadow_segment(scene, light, h, ls)
         position = scene.lights[light].position
-        if ls.distance < RAY_FAR:
-            to_light = position - origin
-            distance = wp.length(to_light)
-            direction = safe_normalize(to_light, ls.to_light)
-            max_t = distance * (1.0 - SHADOW_RAY_SHORTENING)
         verdict = UNDECIDED
         blocker = int(-1)
         if cached >= 0:
@@ -331,6 +427,12 @@ def render_kernel(features):
         return q.face, q.u, q.v
 
     @wp.func
+    def next_hit(scene: SceneData, origin: wp.vec3, d: wp.vec3):
+        """(face, u, v) of the nearest surface along a ray leaving a surface, face -1 for none."""
+        q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
+        return wp.where(q.result, q.face, -1), q.u, q.v
+
+    @wp.func
     def render_row(
         scene: SceneData,
         cam: CameraData,
@@ -364,6 +466,7 @@ def render_kernel(features):
             radiance = wp.vec3(0.0)
             normal_sum = wp.vec3(0.0)
             hits = int(0)
+            covered = float(0.0)
             depth = float(RAY_FAR)
             samples = spp
             if wp.static(not f.supersampling):
@@ -390,6 +493,15 @@ def render_kernel(features):
                     dir_dx = camera_ray_direction(cam, float(px) + offset[0] + step, float(py) + offset[1])
                     dir_dy = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1] + step)
                 origin = cam.eye
+                # the weight of what lies further along the ray, and the part of the sample no
+                # surface covers (alpha-blended surfaces cover part of it)
+                throughput = wp.vec3(1.0)
+                uncovered = float(1.0)
+                # the attenuation coefficient of the volume the ray travels in (0: none)
+                sigma = wp.vec3(0.0)
+                # the squared GGX width rough transmissive surfaces blur the environment by
+                blur = float(0.0)
+                lobe_state = wp.rand_init(pixel_seed, TRANSMISSION_STREAM + s)
                 hits_before = hits
                 face, u, v = primary_hit(scene, seen, origin, d)
                 for _ in range(MAX_PASS_THROUGH):
@@ -398,32 +510,144 @@ def render_kernel(features):
                     h = surface_hit(scene, face, u, v, d)
                     mat = scene.materials[h.material]
                     uv0 = hit_uv(scene, h)
+                    # the footprint of the camera ray's differentials, also for surfaces seen through
+                    # refracting ones (whose magnification it ignores)
+                    uv = hit_texcoords(scene, h, uv0, cam.eye, dir_dx, dir_dy)
+                    if wp.static(f.volume):
+                        if max_channel(sigma) > 0.0:  # absorbed on the way from inside a volume
+                            throughput = wp.cw_mul(throughput, beer_lambert(sigma, wp.length(h.p - origin)))
+                        if h.back_face == 1 and mat.thickness > 0.0:
+                            if transmission_at(scene, mat, uv) > 0.0 and not is_cut_out(scene, h, mat, uv0):
+                                # leaving a volume (whatever double_sided says): a bare interface, as
+                                # lights outside do not shade it; its partial reflection is dropped
+                                eta = 1.0 / mat.ior
+                                n_exit = shading_normal(scene, h, mat, uv)
+                                refracts, d_next, bent_by = refract_through(d, n_exit, h.ng, eta)
+                                if wp.static(f.rough_transmission == "sampled"):
+                                    rough = roughness_at(scene, mat, uv)
+                                    if rough > 0.0:
+                                        u2 = wp.vec2(wp.randf(lobe_state), wp.randf(lobe_state))
+                                        refracts, d_next, lobe_weight = sample_rough_interface(d, n_exit, h.ng, eta,
+                                                                                               rough, u2)
+                                        throughput = throughput * lobe_weight
+                                        bent_by = n_exit
+                                if refracts:
+                                    fresnel = fresnel_dielectric(wp.dot(bent_by, -d), eta)
+                                    throughput = throughput * (1.0 - fresnel)
+                                    sigma = wp.vec3(0.0)
+                                    if wp.static(f.rough_transmission == "prefiltered"):
+                                        blur = blur + transmission_blur(roughness_at(scene, mat, uv), mat.ior)
+                                d = d_next
+                                origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
+                                face, u, v = next_hit(scene, origin, d)
+                                continue
                     if wp.static(f.pass_through):
                         if is_culled(scene, h, mat, uv0):
                             origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
-                            q = wp.mesh_query_ray(scene.mesh, origin, d, RAY_FAR)
-                            face = wp.where(q.result, q.face, -1)
-                            u = q.u
-                            v = q.v
+                            face, u, v = next_hit(scene, origin, d)
                             continue
-                    uv = hit_texcoords(scene, h, uv0, cam.eye, dir_dx, dir_dy)
                     n = wp.vec3(0.0)
-                    if wp.static(shaded or f.aovs):
+                    if wp.static(shaded or f.aovs or f.transmission):
                         n = shading_normal(scene, h, mat, uv)
                     shaded_radiance, cache, scale, scale_material = shade(scene, maps, buffers, env, dfg, h, mat, uv,
                                                                           -d, n, pixel_seed, s, cache, scale,
                                                                           scale_material)
-                    radiance = radiance + shaded_radiance
-                    hits = hits + 1
                     if wp.static(f.aovs):
-                        normal_sum = normal_sum + n
-                        depth = wp.min(depth, wp.length(h.p - cam.eye))
+                        if hits == hits_before:  # the first surface the sample shows
+                            hits = hits + 1
+                            normal_sum = normal_sum + n
+                            depth = wp.min(depth, wp.length(h.p - cam.eye))
+                    t = float(0.0)
+                    if wp.static(f.transmission):
+                        t = transmission_at(scene, mat, uv)
+                    if wp.static(f.alpha_blend):
+                        if mat.alpha_blend == 1:
+                            # glTF alphaMode BLEND: alpha is the surface's coverage, composited
+                            # front to back ("over", Porter & Duff 1984); a transmissive blended
+                            # surface passes its share on as a thin wall
+                            alpha = wp.clamp(alpha_at(scene, h, mat, uv0), 0.0, 1.0)
+                            radiance = radiance + wp.cw_mul(throughput, shaded_radiance) * alpha
+                            passed = wp.vec3(1.0 - alpha)
+                            if wp.static(f.transmission):
+                                if t > 0.0:
+                                    passed = passed + transmitted(scene, h, mat, uv, n, -d, t) * alpha
+                            throughput = wp.cw_mul(throughput, passed)
+                            uncovered = uncovered * (1.0 - alpha)
+                            if wp.max(max_channel(throughput), uncovered) <= NEGLIGIBLE_THROUGHPUT:
+                                throughput = wp.vec3(0.0)
+                                uncovered = 0.0
+                                break
+                            origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
+                            face, u, v = next_hit(scene, origin, d)
+                            continue
+                    if wp.static(f.transmission):
+                        if t > 0.0:
+                            # KHR_materials_transmission: the surface's own radiance, then the share
+                            # of what lies behind it; straight on through a thin wall, refracted into
+                            # a volume (KHR_materials_volume)
+                            radiance = radiance + wp.cw_mul(throughput, shaded_radiance)
+                            throughput = wp.cw_mul(throughput, transmitted(scene, h, mat, uv, n, -d, t))
+                            uncovered = 0.0
+                            if wp.static(f.rough_transmission == "prefiltered"):
+                                blur = blur + transmission_blur(roughness_at(scene, mat, uv), mat.ior)
+                            if max_channel(throughput) <= NEGLIGIBLE_THROUGHPUT:
+                                throughput = wp.vec3(0.0)
+                                break
+                            thick = False
+                            bent = False  # whether d_next replaces d
+                            d_next = d
+                            if wp.static(f.volume):
+                                thick = mat.thickness > 0.0
+                                if thick:
+                                    refracts, d_next, bent_by = refract_through(d, n, h.ng, mat.ior)
+                                    sigma = mat.attenuation
+                                    bent = True
+                            if wp.static(f.rough_transmission == "sampled"):
+                                rough = roughness_at(scene, mat, uv)
+                                if rough > 0.0:
+                                    # the exact rung: a draw of the GGX transmission lobe, refracted
+                                    # into a volume (Walter et al. 2007) or through a thin wall (the
+                                    # specular lobe seen through it, as the extension defines)
+                                    u1 = wp.vec2(wp.randf(lobe_state), wp.randf(lobe_state))
+                                    lobe_weight = float(1.0)
+                                    if thick:
+                                        inward, d_next, lobe_weight = sample_rough_interface(d, n, h.ng, mat.ior, rough,
+                                                                                             u1)
+                                    else:
+                                        d_next, lobe_weight = sample_thin_lobe(d, n, h.ng,
+                                                                               transmission_roughness(rough, mat.ior), u1)
+                                    throughput = throughput * lobe_weight
+                                    bent = True
+                            if bent:
+                                d = d_next
+                            origin = offset_ray_origin(h.p, h.p_error, h.ng, d)
+                            face, u, v = next_hit(scene, origin, d)
+                            continue
+                    radiance = radiance + wp.cw_mul(throughput, shaded_radiance)
+                    throughput = wp.vec3(0.0)
+                    uncovered = 0.0
                     break
+                covered = covered + (1.0 - uncovered)
+                if wp.static(f.transmission and not f.environment_background):
+                    # what transmissive surfaces let through of the background is in the pixel's
+                    # radiance (they cover the pixel); the uncovered rest is blended by alpha
+                    radiance = radiance + wp.cw_mul(throughput - wp.vec3(uncovered), background)
                 if wp.static(f.environment_background):
-                    if hits == hits_before:
-                        radiance = radiance + environment_radiance(env, d)
+                    if throughput[0] + throughput[1] + throughput[2] > 0.0:  # no weight is negative
+                        seen_along = wp.vec3(0.0)
+                        if wp.static(f.rough_transmission == "prefiltered"):
+                            # the cheap rung of rough transmission: the environment prefiltered
+                            # at the roughness of the surfaces passed (as the glTF Sample Viewer
+                            # blurs its framebuffer); objects seen through them stay sharp
+                            if blur > 0.0:
+                                seen_along = prefiltered_radiance(env, d, blurred_roughness(blur))
+                            else:
+                                seen_along = environment_radiance(env, d)
+                        else:
+                            seen_along = environment_radiance(env, d)
+                        radiance = radiance + wp.cw_mul(throughput, seen_along)
             inv_spp = 1.0 / float(spp)
-            alpha = float(hits) * inv_spp
+            alpha = covered * inv_spp
             seen_behind = background * (1.0 - alpha)
             if wp.static(f.environment_background):
                 seen_behind = wp.vec3(0.0)

@@ -8,6 +8,9 @@ from .textures import Texels, TextureData
 wp.set_module_options({"enable_backward": False})
 
 NO_TEXTURE = wp.constant(-1)
+# The index of refraction MaterialData.ior holds for KHR_materials_ior's infinite one (ior = 0):
+# refraction at it bends rays along the normal to within 1e-6 radians.
+INFINITE_IOR = 1.0e6
 
 
 @wp.struct
@@ -31,6 +34,8 @@ class MaterialData:
     double_sided: int
     # 1 for glTF alphaMode MASK
     alpha_mask: int
+    # 1 for glTF alphaMode BLEND: camera rays composite its alpha as coverage
+    alpha_blend: int
     # 1 for an unlit material (KHR_materials_unlit): its radiance is its base colour, lights ignored
     unlit: int
     # KHR_materials_anisotropy: strength in [0, 1] and the direction's rotation (cos, sin) from the tangent
@@ -47,6 +52,14 @@ class MaterialData:
     # KHR_materials_sheen: the sheen's linear colour and perceptual roughness
     sheen_color: wp.vec3
     sheen_roughness: float
+    # KHR_materials_transmission's factor (0: opaque), KHR_materials_volume's thickness factor (0:
+    # thin-walled), attenuation coefficient sigma per scene unit (0: none; FLOAT32_MAX for an
+    # infinite one), and the dielectric's index of refraction (KHR_materials_ior; its "infinite"
+    # 0 stored as INFINITE_IOR)
+    transmission: float
+    thickness: float
+    attenuation: wp.vec3
+    ior: float
     # indices into SceneData.textures, NO_TEXTURE when the slot is empty
     base_color_texture: int
     metallic_roughness_texture: int
@@ -63,6 +76,7 @@ class MaterialData:
     clearcoat_normal_texture: int
     sheen_color_texture: int
     sheen_roughness_texture: int
+    transmission_texture: int
 
 
 @wp.struct

@@ -117,7 +117,7 @@ def shadow_map_visibility(maps: ShadowMaps, light: int, light_position: wp.vec3,
 @functools.cache
 def cut_out_pass():
     """The kernel that lets a depth map see through alpha cut-outs (built on first use)."""
-    _, _, nearest_opaque, _ = surface_tests(True, True, True, True)
+    _, _, _, nearest_opaque, _ = surface_tests(True, True, True, True)
 
     @wp.kernel(enable_backward=False, module="unique")
     def see_through_cut_outs(scene: SceneData, cam: CameraData, orthographic: int, first_row: int,

@@ -16,6 +16,9 @@ wp.set_module_options({"enable_backward": False})
 # How many culled surfaces (single-sided back faces, alpha-masked texels) a ray may pass through
 # before it gives up: a camera ray then reports a miss, an occlusion ray a blocker.
 MAX_PASS_THROUGH = wp.constant(16)
+# A camera ray stops once what lies further along it weighs no more than this (the part of the
+# sample left uncovered by alpha-blended surfaces): below float32's resolution of a pixel's sum.
+NEGLIGIBLE_THROUGHPUT = wp.constant(1.0e-7)
 
 
 @wp.struct
@@ -89,18 +92,19 @@ def texture_at(scene: SceneData, index: int, uv: wp.vec2, duv_dx: wp.vec2, duv_d
 
 @functools.cache
 def surface_tests(textured: bool, base_color_texture: bool, masked: bool, second_uv_set: bool):
-    """(hit_uv, is_cut_out, nearest_opaque, occluded) for a kernel whose scenes have UVs
+    """(hit_uv, alpha_at, is_cut_out, nearest_opaque, occluded) for a kernel whose scenes have UVs
     (``textured``), base colour textures, alpha-masked materials (``masked``) and textures read
     with TEXCOORD_1 (``second_uv_set``): each compiled with only what those need.
 
     - hit_uv(scene, h): the hit's TEXCOORD_0 (0 without textures).
+    - alpha_at(scene, h, mat, uv): the material's coverage at the hit, glTF's alpha: base colour
+      alpha times vertex colour alpha times base colour texture alpha; ``uv`` is the hit's
+      TEXCOORD_0 (TEXCOORD_1 is interpolated here for a base colour texture that reads it). The
+      texture is read at level 0, whatever the pixel's footprint: a cut-out is a yes-or-no test,
+      and thresholding a coarser level's averaged alpha would thin or thicken cut-outs with
+      distance and disagree with the shadow rays, which have no footprint.
     - is_cut_out(scene, h, mat, uv): whether an alpha-masked material (glTF alphaMode MASK) is cut
-      out at the hit: base colour alpha times vertex colour alpha times texture alpha below the
-      cutoff; ``uv`` is the hit's TEXCOORD_0 (TEXCOORD_1 is interpolated here for a base colour
-      texture that reads it). The texture is read at level 0, whatever the pixel's footprint: a
-      cut-out is a yes-or-no test, and thresholding a coarser level's averaged alpha would thin
-      or thicken cut-outs with distance and disagree with the shadow rays, which have no
-      footprint.
+      out at the hit: its alpha_at below the cutoff.
     - nearest_opaque(scene, origin, direction, max_t) -> (found, hit): the nearest hit of origin
       + t direction, 0 <= t < max_t, not cut out: nearest hit after nearest hit past cut-outs (as
       camera rays pass them); after MAX_PASS_THROUGH cut-outs the last one counts as opaque.
@@ -116,17 +120,21 @@ def surface_tests(textured: bool, base_color_texture: bool, masked: bool, second
         return uv
 
     @wp.func
+    def alpha_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> float:
+        alpha = mat.base_color[3] * interpolate(scene.colors, h)[3]
+        if wp.static(base_color_texture):
+            at = uv
+            if wp.static(second_uv_set):
+                if mat.base_color_texture != NO_TEXTURE:
+                    if scene.textures[mat.base_color_texture].uv_set == 1:
+                        at = interpolate(scene.uvs1, h)
+            alpha = alpha * texture_or_one(scene, mat.base_color_texture, at)[3]
+        return alpha
+
+    @wp.func
     def is_cut_out(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: wp.vec2) -> bool:
         if mat.alpha_mask == 1:
-            alpha = mat.base_color[3] * interpolate(scene.colors, h)[3]
-            if wp.static(base_color_texture):
-                at = uv
-                if wp.static(second_uv_set):
-                    if mat.base_color_texture != NO_TEXTURE:
-                        if scene.textures[mat.base_color_texture].uv_set == 1:
-                            at = interpolate(scene.uvs1, h)
-                alpha = alpha * texture_or_one(scene, mat.base_color_texture, at)[3]
-            return alpha < mat.alpha_cutoff
+            return alpha_at(scene, h, mat, uv) < mat.alpha_cutoff
         return False
 
     # inlined: a call would copy the scene's struct (~0.6 KB) per ray
@@ -153,4 +161,4 @@ def surface_tests(textured: bool, base_color_texture: bool, masked: bool, second
         found, h = nearest_opaque(scene, origin, direction, max_t)
         return found
 
-    return hit_uv, is_cut_out, nearest_opaque, occluded
+    return hit_uv, alpha_at, is_cut_out, nearest_opaque, occluded

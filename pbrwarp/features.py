@@ -36,6 +36,16 @@ class Features:
     # KHR_materials_specular's textures: strength (alpha channel) and colour
     specular_texture: bool = True
     specular_color_texture: bool = True
+    # KHR_materials_transmission: camera rays pass through transmissive surfaces; its texture
+    transmission: bool = True
+    transmission_texture: bool = True
+    # KHR_materials_volume: rays refract into closed meshes and are absorbed inside
+    volume: bool = True
+    # rough transmission: "prefiltered" (the environment seen through is blurred; the cheap rung),
+    # "sampled" (the GGX transmission lobe sampled per camera sample; the exact rung) or False
+    rough_transmission: object = "prefiltered"
+    # shadow rays pass transmissive surfaces, tinted
+    transmissive_shadows: bool = True
     normal_mapping: bool = True
     vertex_colors: bool = True
     emission: bool = True
@@ -63,6 +73,8 @@ class Features:
     supersampling: bool = True
     # camera rays may pass through surfaces: single-sided back faces, alpha masks
     pass_through: bool = True
+    # camera rays composite alpha-blended surfaces' coverage front to back (glTF alphaMode BLEND)
+    alpha_blend: bool = True
     # occlusion rays (shadow rays, shadowed environment directions) pass alpha cut-outs
     masked_occlusion: bool = True
     # depth and normal outputs
@@ -93,13 +105,14 @@ class Features:
         reference for specialization. Sampling, outputs, BRDF, the shadow technique, the IBL rungs,
         what misses show and the texture filter follow the options."""
         return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, shadows=shadow_mode(shadows)[0], environment=ibl,
-                   environment_background=environment_background, texture_filter=_texture_filter(texture_filter))
+                   environment_background=environment_background, texture_filter=_texture_filter(texture_filter),
+                   rough_transmission="sampled" if ibl.method == "monte_carlo" else "prefiltered")
 
 
 # The Features flags that read textures (each a material slot, or the normal map's).
 TEXTURE_FLAGS = ("base_color_texture", "metallic_roughness_texture", "emissive_texture", "normal_mapping",
                  "specular_texture", "specular_color_texture", "occlusion_texture", "anisotropy_texture",
-                 "iridescence_texture", "clearcoat_textures", "sheen_textures")
+                 "iridescence_texture", "clearcoat_textures", "sheen_textures", "transmission_texture")
 # Material texture slots whose Features flag has another name.
 _SLOT_FLAGS = {"normal_texture": "normal_mapping", "iridescence_thickness_texture": "iridescence_texture",
                "clearcoat_texture": "clearcoat_textures", "clearcoat_roughness_texture": "clearcoat_textures",
@@ -220,7 +233,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
         add("shadows", False, "no shadow rays: shadows=False")
     elif not scene.lights:
         add("shadows", False, "no shadow rays: no lights")
-    elif len(prims) == 1 and prims[0].material.alpha_mode != "MASK" and _is_convex(scene, prims[0]):
+    elif len(prims) == 1 and not prims[0].material.see_through and _is_convex(scene, prims[0]):
         add("shadows", False, "no shadow rays: one convex mesh cannot shadow itself beyond what n.l does")
     elif shadows == "map":
         decisions.append(Decision("shadows", "map", f"shadow maps: {len(scene.lights)} lookups per hit, "
@@ -298,7 +311,6 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
             add(name, False, f"no {label} read: no {layer} layer")
         else:
             add(name, users, f"{label}: {users} of {len(rows)} meshes" if users else f"no {label}")
-    decisions += _texture_decisions(prims, decisions, texture_filter)
     unlit = sum(1 for m in mats if m.unlit)
     add("unlit", unlit, f"unlit (KHR_materials_unlit): {_count(unlit, 'material')} show their base colour"
         if unlit else "no unlit materials")
@@ -315,6 +327,45 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     else:
         add("masked_occlusion", masked, f"occlusion rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
             else "no cut-outs in occlusion rays: no alpha-masked material")
+    transmissive = [m for m in mats if m.transmissive and not m.unlit]
+    add("transmission", transmissive, f"camera rays pass through smooth transmissive surfaces "
+        f"(KHR_materials_transmission: {_count(len(transmissive), 'material')})"
+        if transmissive else "no transmission: no transmissive material")
+    present, why = slot("transmission_texture", "transmission texture")
+    if present and not transmissive:
+        present, why = False, "no transmission textures read: no transmissive material"
+    add("transmission_texture", present, why)
+    volumes = sum(1 for m in transmissive if m.thickness > 0.0)
+    add("volume", volumes, f"rays refract into and out of closed volumes, absorbed inside (KHR_materials_volume: "
+        f"{_count(volumes, 'material')})" if volumes else "no volumes: every transmissive surface is thin-walled"
+        if transmissive else "no volumes: no transmissive material")
+    traced_shadows = next(d.present for d in decisions if d.name == "shadows") == "rays"
+    if transmissive and traced_shadows:
+        add("transmissive_shadows", True, "shadow rays pass transmissive surfaces, tinted by what they transmit "
+            "(straight, without refraction)")
+    else:
+        add("transmissive_shadows", False, "no tinted shadows: " + (
+            "no shadow rays" if transmissive else "no transmissive material")
+            + ("" if traced_shadows or not transmissive else " (shadow maps and environment rays treat glass as opaque)"))
+    rough = sum(1 for m in transmissive if m.roughness > 0.0)
+    environment_shown = next(d.present for d in decisions if d.name == "environment_background")
+    lighting = next(d.present for d in decisions if d.name == "environment")
+    if rough and lighting and lighting.method == "monte_carlo":
+        decisions.append(Decision("rough_transmission", "sampled", "rough transmission samples the GGX transmission "
+                                  f"lobe per camera sample ({_count(rough, 'material')}; the exact rung, with Monte "
+                                  "Carlo environment lighting: what lies behind is blurred, with noise)"))
+    elif rough and environment_shown:
+        decisions.append(Decision("rough_transmission", "prefiltered", "the environment seen through rough "
+                                  f"transmissive surfaces is blurred: prefiltered at their roughness "
+                                  f"({_count(rough, 'material')}; cheap rung: objects behind stay sharp)"))
+    else:
+        add("rough_transmission", False, "no transmission blur: " + (
+            "misses show the background colour" if rough else "no rough transmissive material"))
+    blended = sum(1 for m in mats if m.alpha_mode == "BLEND")
+    add("alpha_blend", blended, f"camera rays composite alpha-blended coverage front to back "
+        f"({_count(blended, 'material')}; opaque to shadow and environment rays)" if blended
+        else "no alpha blending: no alphaMode BLEND material")
+    decisions += _texture_decisions(prims, decisions, texture_filter)  # after every texture slot's decision
     single = sum(1 for m in mats if not m.double_sided or m.alpha_mode == "MASK")
     add("pass_through", single, f"camera rays pass single-sided back faces and alpha cut-outs ({_count(single, 'material')})"
         if single else "no pass-through: every material is double-sided and opaque")

@@ -15,18 +15,21 @@ EXT_mesh_gpu_instancing, whose instances are expanded into copies; KHR_draco_mes
 decoded by DracoPy (the ``draco`` extra; pbrwarp/gltf_draco.py); PNG and JPEG textures (and
 WebP, GIF, BMP, TGA), and KTX2 (KHR_texture_basisu) decoded by opengl-basisu (the ``ktx2`` extra;
 pbrwarp/gltf_basisu.py); samplers' wrap modes and LINEAR filtering; metallic-roughness materials
-with alphaMode OPAQUE and MASK; KHR_texture_transform, KHR_materials_specular,
+with alphaMode OPAQUE, MASK and BLEND; KHR_texture_transform, KHR_materials_specular,
 KHR_materials_ior, KHR_materials_emissive_strength, KHR_materials_unlit, KHR_materials_clearcoat,
-KHR_materials_sheen, KHR_materials_anisotropy, KHR_materials_iridescence, KHR_lights_punctual (with
-``range``), KHR_node_visibility; perspective cameras.
+KHR_materials_sheen, KHR_materials_anisotropy, KHR_materials_iridescence,
+KHR_materials_transmission (but the blur of rough surfaces on what is seen through them),
+KHR_materials_volume, KHR_lights_punctual (with ``range``), KHR_node_visibility; perspective
+cameras.
 
 Everything else a file asks for is named in a warning at load, once per kind
 ("KHR_materials_transmission on 3 materials ('glass', ...) ignored: rendered opaque"), saying what is rendered instead,
 and kept in ``GltfContent.load_warnings`` (``Scene.load_warnings``, listed by ``pw.explain``): the
 extensions ``_EXTENSIONS`` marks IGNORED and unknown ones, TEXCOORD_2 and above (sampled as
-TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification,
-alphaMode BLEND (rendered opaque), animations (the nodes' stored static pose is shown), points and
-lines (skipped), cameras other than perspective (skipped) and scenes other than the default.
+TEXCOORD_0), morph targets of TEXCOORD_n and COLOR_n, NEAREST magnification, rough transmissive
+materials (by default only the environment seen through them is blurred), animations (the nodes'
+stored static pose is shown), points and lines (skipped), cameras other than perspective
+(skipped) and scenes other than the default.
 pbrwarp/gltf_notes.py makes the notes (the reader adds the ones it can only make where it reads:
 TEXCOORD_n, camera types, morph target attributes). An IGNORED extension listed in
 ``extensionsRequired`` is an error, as glTF asks.
@@ -854,6 +857,7 @@ class _Materials:
         (("extensions", "KHR_materials_clearcoat", "clearcoatNormalTexture"), "clearcoat_normal_texture"),
         (("extensions", "KHR_materials_sheen", "sheenColorTexture"), "sheen_color_texture"),
         (("extensions", "KHR_materials_sheen", "sheenRoughnessTexture"), "sheen_roughness_texture"),
+        (("extensions", "KHR_materials_transmission", "transmissionTexture"), "transmission_texture"),
     )
 
     def __init__(self, doc: _Document):
@@ -878,6 +882,7 @@ class _Materials:
         film = ext.get("KHR_materials_iridescence", {})
         coat = ext.get("KHR_materials_clearcoat", {})
         sheen = ext.get("KHR_materials_sheen", {})
+        volume = ext.get("KHR_materials_volume", {})
         textures = {}
         for location, slot in self._SLOTS:
             info = spec
@@ -909,6 +914,12 @@ class _Materials:
             clearcoat_normal_scale=coat.get("clearcoatNormalTexture", {}).get("scale", 1.0),
             sheen_color=sheen.get("sheenColorFactor", (0.0, 0.0, 0.0)),
             sheen_roughness=sheen.get("sheenRoughnessFactor", 0.0),
+            transmission=ext.get("KHR_materials_transmission", {}).get("transmissionFactor", 0.0),
+            # the thickness texture is for renderers that cannot measure the geometry, which a
+            # ray tracer does (KHR_materials_volume, "Thickness Texture")
+            thickness=volume.get("thicknessFactor", 0.0),
+            attenuation_color=volume.get("attenuationColor", (1.0, 1.0, 1.0)),
+            attenuation_distance=volume.get("attenuationDistance", math.inf),
             name=spec.get("name", ""),
             **textures,
         )

@@ -16,10 +16,12 @@ from collections import deque
 _TRIANGLES = 4  # glTF's default primitive mode
 
 # Every glTF extension pbrwarp knows and what it does with it (docs/loading.md tables the same):
-# HONOURED, read as the extension specifies; NO_EFFECT, nothing a still image shows (metadata, interaction); IGNORED, dropped with a warning saying what is
+# HONOURED, read as the extension specifies; PARTLY, read but for a property that is noted where a
+# file uses it (rough KHR_materials_transmission: _note_rough_transmission); NO_EFFECT, nothing a
+# still image shows (metadata, interaction); IGNORED, dropped with a warning saying what is
 # rendered instead (the entry's text). A file may require (extensionsRequired) any extension but
 # an IGNORED one; an extension pbrwarp does not know is IGNORED.
-HONOURED, NO_EFFECT, IGNORED = "honoured", "no visual effect", "ignored"
+HONOURED, PARTLY, NO_EFFECT, IGNORED = "honoured", "partly honoured", "no visual effect", "ignored"
 _EXTENSIONS = {
     "KHR_lights_punctual": (HONOURED, ""),
     "KHR_materials_emissive_strength": (HONOURED, ""),
@@ -39,10 +41,10 @@ _EXTENSIONS = {
     "KHR_materials_iridescence": (HONOURED, ""),
     "KHR_materials_pbrSpecularGlossiness": (IGNORED, "rendered with the material's metallic-roughness values"),
     "KHR_materials_sheen": (HONOURED, ""),
-    "KHR_materials_transmission": (IGNORED, "rendered opaque (nothing shows through)"),
+    "KHR_materials_transmission": (PARTLY, "objects seen through rough surfaces are not blurred but by the exact rung"),
     "KHR_materials_unlit": (HONOURED, ""),
     "KHR_materials_variants": (IGNORED, "each primitive shows its default material"),
-    "KHR_materials_volume": (IGNORED, "rendered without absorption inside the volume"),
+    "KHR_materials_volume": (HONOURED, ""),
     "KHR_mesh_quantization": (HONOURED, ""),
     "KHR_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
     "EXT_meshopt_compression": (IGNORED, "the uncompressed fallback buffers are read instead"),
@@ -127,8 +129,8 @@ def _note_unhonoured(doc, nodes: list):
     _note_scenes(doc)
     _note_animations(doc)
     _note_points_and_lines(doc, nodes)
-    _note_alpha_blend(doc)
     _note_sampler_filters(doc)
+    _note_rough_transmission(doc)
 
 
 def _note_extensions(doc):
@@ -209,13 +211,6 @@ def _note_points_and_lines(doc, nodes: list):
                       "primitive", (mi, pi), f"{pi} of mesh {_ident(mesh, mi)}")
 
 
-def _note_alpha_blend(doc):
-    for index, material in _elements(doc, "materials"):
-        if material.get("alphaMode") == "BLEND":
-            doc.notes.add("alphaMode BLEND", "alphaMode BLEND on {subjects} not blended: rendered opaque "
-                          "(pbrwarp cuts out by alphaMode MASK only)", "material", index, _ident(material, index))
-
-
 def _note_sampler_filters(doc):
     for index, sampler in _elements(doc, "samplers"):
         code = sampler.get("magFilter", 9729)
@@ -225,3 +220,19 @@ def _note_sampler_filters(doc):
                           "filtered bilinearly (texels blend rather than show as sharp squares)",
                           "sampler", index, _ident(sampler, index))
 
+
+
+def _note_rough_transmission(doc):
+    """Transmissive materials whose roughness is not 0: the default rung blurs only the
+    environment seen through them (docs/materials.md "Transmission")."""
+    for index, material in _elements(doc, "materials"):
+        extensions = material.get("extensions")
+        transmission = extensions.get("KHR_materials_transmission") if isinstance(extensions, dict) else None
+        if not isinstance(transmission, dict) or transmission.get("transmissionFactor", 0.0) == 0.0:
+            continue
+        pbr = material.get("pbrMetallicRoughness")
+        pbr = pbr if isinstance(pbr, dict) else {}
+        if pbr.get("roughnessFactor", 1.0) != 0.0:
+            doc.notes.add("rough transmission", "objects seen through {subjects} with roughness above 0 not blurred "
+                          "(KHR_materials_transmission): only the environment seen through them is, but with Monte "
+                          "Carlo environment lighting (quality='reference')", "material", index, _ident(material, index))

@@ -27,7 +27,7 @@ from .raster import Clusters, triangle_clusters
 from .scene import unit_rows
 from .textures import UNORM8_DECODE, WRAP_MODES, Texture, mip_levels, mip_texel_count
 from pbrwarp.kernels.lights import LightData
-from pbrwarp.kernels.scene_data import MaterialData, SceneData
+from pbrwarp.kernels.scene_data import INFINITE_IOR, MaterialData, SceneData
 from pbrwarp.kernels.textures import TEXELS_FLOAT, TEXELS_SRGB8, TEXELS_UNORM8, Texels, TextureData, texel_store
 
 # Largest triangle and vertex counts the int32 indices of the kernels address.
@@ -235,6 +235,7 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
         row.ior_eta = _float32_vector(mat.complex_ior[0], "Material.complex_ior n")
         row.ior_kappa = _float32_vector(mat.complex_ior[1], "Material.complex_ior k")
     row.alpha_mask = int(mat.alpha_mode == "MASK")
+    row.alpha_blend = int(mat.alpha_mode == "BLEND")
     row.unlit = int(mat.unlit)
     row.anisotropy_strength = mat.anisotropy_strength
     row.anisotropy_rotation = wp.vec2(math.cos(mat.anisotropy_rotation), math.sin(mat.anisotropy_rotation))
@@ -244,6 +245,10 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.clearcoat_normal_scale = mat.clearcoat_normal_scale
     row.sheen_color = _float32_vector(mat.sheen_color, "Material.sheen_color")
     row.sheen_roughness = mat.sheen_roughness
+    row.transmission, row.thickness = mat.transmission, mat.thickness
+    row.attenuation = _float32_vector([min(sigma, _FLOAT32_MAX) for sigma in mat.attenuation_coefficient],
+                                      "Material.attenuation_color")
+    row.ior = mat.ior if mat.ior > 0.0 else INFINITE_IOR
     slot_index = {slot: texture_slots[(id(tex), srgb)] if has_uvs else -1 for slot, tex, srgb in mat.textures()}
     row.base_color_texture = slot_index.get("base_color_texture", -1)
     row.metallic_roughness_texture = slot_index.get("metallic_roughness_texture", -1)
@@ -260,8 +265,12 @@ def _material_row(mat: Material, texture_slots: dict, has_uvs: bool) -> Material
     row.clearcoat_normal_texture = slot_index.get("clearcoat_normal_texture", -1)
     row.sheen_color_texture = slot_index.get("sheen_color_texture", -1)
     row.sheen_roughness_texture = slot_index.get("sheen_roughness_texture", -1)
+    row.transmission_texture = slot_index.get("transmission_texture", -1)
     row.occlusion_strength = mat.occlusion_strength
     return row
+
+
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def _float32_vector(values, what: str):
@@ -373,7 +382,7 @@ def closed_seen_from(scene, prim, point=None) -> bool:
     outside its bounding box, so outside the volume: a ray from there enters it through a front
     face first, and a segment from anywhere to there that meets it leaves it through a front face
     turned towards the point. ``prim`` is one of ``scene``'s, whose cache keeps its facts."""
-    if prim.material.alpha_mode == "MASK":
+    if prim.material.see_through:
         return False
     if point is not None:
         lo, hi = scene.cache.fact("bounds", prim, lambda p: p.bounds())

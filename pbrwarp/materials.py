@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from . import validate
-from .errors import InputError
+from .errors import InputError, InputTypeError
 from .textures import Texture
 
 # Texture slots: (attribute, whether the texels are sRGB-encoded colour by default).
@@ -25,6 +26,7 @@ TEXTURE_SLOTS = (
     ("clearcoat_normal_texture", False),
     ("sheen_color_texture", True),
     ("sheen_roughness_texture", False),
+    ("transmission_texture", False),
 )
 
 
@@ -69,8 +71,10 @@ class Material(validate.Checked):
       as glTF specifies (glTF files set it per material; glTF's own default is False). Shadows
       are cast by every face either way.
     - ``alpha_mode``: "OPAQUE" (default), "MASK" (cut out where base-colour alpha, times vertex and
-      texture alpha, is below ``alpha_cutoff``, in [0, 1], default 0.5) or "BLEND" (rendered
-      opaque).
+      texture alpha, is below ``alpha_cutoff``, in [0, 1], default 0.5) or "BLEND" (that alpha is
+      the surface's coverage: a camera ray takes alpha of its shading and passes 1 - alpha on to
+      what lies behind, front to back along the ray, and the frame's alpha is the coverage so
+      composited; shadow rays and shadowed environment rays treat the surface as opaque).
     - ``unlit``: KHR_materials_unlit's constant shading (default False). When True the surface's
       radiance towards the eye is its base colour, times the base-colour texture and vertex
       colour, in cd/m^2 (a white unlit surface is 1 nit, whatever lights the scene); lights,
@@ -109,6 +113,19 @@ class Material(validate.Checked):
       (default 0), times ``sheen_roughness_texture``'s alpha (linear): the Charlie sheen of
       Estevez & Kulla 2017 over the material, which is scaled by 1 - max(sheen_color) E_sheen so
       that no energy is gained (docs/materials.md).
+    - ``transmission``: KHR_materials_transmission's share of the light entering the surface (not
+      reflected by its specular layer) that passes through it rather than being diffused, in
+      [0, 1] (default 0, opaque); ``transmission_texture`` (linear) multiplies it by its R
+      channel. Transmitted light is tinted by the base colour; metals transmit nothing (the share
+      is scaled by 1 - metallic). Ray traced for smooth surfaces (docs/materials.md).
+    - ``thickness``: KHR_materials_volume's thicknessFactor, >= 0 (default 0). 0 makes a
+      transmissive surface thin-walled: rays pass straight through it. Above 0 the mesh bounds a
+      volume: rays refract by ``ior`` entering and leaving it, whatever ``double_sided`` says, and
+      the distances they travel inside are measured from the geometry (the value itself only
+      chooses the volume).
+    - ``attenuation_color`` (linear RGB in [0, 1], default white) and ``attenuation_distance``
+      (> 0, scene units, default infinity: no absorption): KHR_materials_volume's absorption, the
+      colour white light turns into after that distance inside the volume.
     - ``name``: for messages (default "").
     - ``complex_ior``: optional ``(n, k)``, the complex index of refraction n + ik of a metal,
       each an RGB triple (n > 0, k >= 0), e.g. from refractiveindex.info at 650, 550 and 450 nm.
@@ -156,6 +173,11 @@ class Material(validate.Checked):
     sheen_roughness: float = 0.0
     sheen_color_texture: Texture | None = None
     sheen_roughness_texture: Texture | None = None
+    transmission: float = 0.0
+    transmission_texture: Texture | None = None
+    thickness: float = 0.0
+    attenuation_color: tuple = (1.0, 1.0, 1.0)
+    attenuation_distance: float = math.inf
     name: str = field(default="")
     complex_ior: tuple | None = None
 
@@ -185,6 +207,10 @@ class Material(validate.Checked):
                                                                                  "Material.clearcoat_normal_scale"),
         "sheen_color": lambda material, value: _unit_colour(value, "Material.sheen_color"),
         "sheen_roughness": lambda material, value: validate.unit_interval(value, "Material.sheen_roughness"),
+        "transmission": lambda material, value: validate.unit_interval(value, "Material.transmission"),
+        "thickness": lambda material, value: validate.non_negative(value, "Material.thickness"),
+        "attenuation_color": lambda material, value: _unit_colour(value, "Material.attenuation_color"),
+        "attenuation_distance": lambda material, value: _distance(value),
         "complex_ior": lambda material, value: None if value is None else _complex_ior(value),
         **{slot: (lambda material, value, slot=slot: Texture.wrap(value, f"Material.{slot}"))
            for slot, _ in TEXTURE_SLOTS},
@@ -199,6 +225,26 @@ class Material(validate.Checked):
         n_rgb, k_rgb = _complex_ior((n, k))
         f0 = tuple(((a - 1) ** 2 + b**2) / ((a + 1) ** 2 + b**2) for a, b in zip(n_rgb, k_rgb))
         return cls(base_color=f0, metallic=1.0, roughness=roughness, complex_ior=(n_rgb, k_rgb), **kwargs)
+
+    @property
+    def see_through(self) -> bool:
+        """Whether camera rays may see what lies behind the surface: it is alpha-masked,
+        alpha-blended or transmissive (its back faces and what a closed mesh of it holds may then
+        show)."""
+        return self.alpha_mode != "OPAQUE" or self.transmissive
+
+    @property
+    def transmissive(self) -> bool:
+        """Whether light may pass through the surface (KHR_materials_transmission)."""
+        return self.transmission > 0.0
+
+    @property
+    def attenuation_coefficient(self) -> tuple:
+        """sigma = -ln(attenuation_color) / attenuation_distance per channel, per scene unit
+        (KHR_materials_volume): 0 without absorption, infinite for a black channel."""
+        return tuple(0.0 if c == 1.0 or math.isinf(self.attenuation_distance)
+                     else (math.inf if c == 0.0 else -math.log(c) / self.attenuation_distance)
+                     for c in self.attenuation_color)
 
     @property
     def f0_dielectric(self) -> tuple:
@@ -251,6 +297,17 @@ def _thickness(value, what: str) -> float:
     x = validate.non_negative(value, what)
     if x > 1.0e6:
         raise InputError(f"{what} is in nanometres and must be at most 1e6 (1 mm: no longer a thin film), got {x}")
+    return x
+
+
+def _distance(value) -> float:
+    """A distance > 0, infinity allowed (KHR_materials_volume's attenuationDistance)."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputTypeError(f"Material.attenuation_distance must be a number, got {value!r}") from None
+    if not x > 0.0:
+        raise InputError(f"Material.attenuation_distance must be > 0 (infinity: no absorption), got {value!r}")
     return x
 
 
