@@ -54,10 +54,11 @@ def render_kernel(features):
     coupled = albedo_coupled_brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf), **layers)
     brdf_scaled, diffuse_share_scale = coupled or (None, None)
     # the albedo coupling's normalization depends on the material's inputs alone: where no texture
-    # or vertex colour varies them it is computed once per material met, not per light and pixel
+    # or vertex colour varies them (transmission's scales the base colour) it is computed once per
+    # material met, not per light and pixel
     scale_per_material = bool(coupled) and not (f.base_color_texture or f.metallic_roughness_texture
                                                 or f.vertex_colors or f.specular_texture
-                                                or f.specular_color_texture)
+                                                or f.specular_color_texture or f.transmission_texture)
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
     lit = f.point_lights or f.directional_lights or f.spot_lights
     ibl = f.environment

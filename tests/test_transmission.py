@@ -552,3 +552,20 @@ def test_monte_carlo_environment_lighting_chooses_the_exact_rung():
     assert scene_features(scene, gpu, shadows=True, spp=1, ibl=MONTE_CARLO).rough_transmission == "sampled"
     assert scene_features(scene, gpu, shadows=True, spp=1).rough_transmission == "prefiltered"
     assert "samples the GGX transmission lobe per camera sample" in pw.explain(scene, ibl=MONTE_CARLO)
+
+
+def test_transmission_texture_varies_the_f0_mix_coupling_per_pixel():
+    """The "f0" mix couples the diffuse lobe to a lobe whose f0 mixes in the base colour, which
+    transmission scales per texel: the specialized kernel (which may keep that normalization
+    from pixel to pixel where only the material sets it) renders what the all-effects kernel does."""
+    rng = np.random.default_rng(5)
+    material = pw.Material(base_color=(0.9, 0.5, 0.2), metallic=0.5, roughness=0.4, transmission=0.8,
+                           transmission_texture=rng.uniform(0, 1, (8, 8, 3)).astype(np.float32))
+    scene = pw.Scene()
+    scene.add_mesh(quad(size=2.0, material=material))
+    scene.add_light(pw.PointLight(position=(0.5, 0.8, 2.0), intensity=8.0))
+    cam = pw.Camera.look_at(eye=(0.3, 0.4, 3.0), target=(0, 0, 0))
+    brdf = pw.BRDF(metallic_mix="f0")
+    special = render_checked(scene, cam, size=(32, 32), brdf=brdf)
+    general = render_checked(scene, cam, size=(32, 32), brdf=brdf, specialize=False)
+    np.testing.assert_allclose(special.rgb, general.rgb, rtol=1e-6, atol=1e-30)
