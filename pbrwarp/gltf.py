@@ -58,7 +58,7 @@ from .lights import DirectionalLight, PointLight, SpotLight
 from .load_limits import LoadLimits
 from .materials import Material
 from .primitive import Primitive, transform_primitive, unit_rows
-from .tangents import generate_tangents
+from .tangents import frame_uv_set, generate_tangents
 from .textures import Texture, decode_rgba, open_image
 
 _GLB_MAGIC = b"glTF"
@@ -819,13 +819,11 @@ class _Builder:
             self.doc.notes.add("TEXCOORD_1 missing", "TEXCOORD_1 missing on {subjects}: their textures that ask for "
                                "it sampled with TEXCOORD_0 instead", "primitive", data.key,
                                f"{data.key[1]} of mesh {data.key[0]}")
-        normal_mapped = material.normal_texture is not None or material.clearcoat_normal_texture is not None
-        if tangents is None and (normal_mapped or material.anisotropy_strength > 0.0):
-            # the tangent frame follows the uv set the normal map (else the coat's, else the anisotropy map) is read with
-            mapped = material.normal_texture or material.clearcoat_normal_texture or material.anisotropy_texture
-            uvs = data.uvs1 if mapped is not None and mapped.texcoord == 1 and data.uvs1 is not None else data.uvs
-            if uvs is not None:
-                tangents = generate_tangents(data.positions, normals, uvs, data.faces)
+        if tangents is None:
+            uv_set = frame_uv_set(material, data.uvs, data.uvs1)
+            if uv_set is not None:
+                tangents = generate_tangents(data.positions, normals, data.uvs1 if uv_set == 1 else data.uvs,
+                                             data.faces)
             elif material.anisotropy_strength > 0.0:
                 self.doc.notes.add("anisotropy without tangents", "KHR_materials_anisotropy not applied on "
                                    "{subjects}: no TANGENT nor TEXCOORD_0 to give its direction (shaded isotropic)",

@@ -25,6 +25,7 @@ from .locality import inverse_permutation, locality_order
 from .materials import Material
 from .raster import Clusters, triangle_clusters
 from .scene import unit_rows
+from .tangents import frame_uv_set, generate_tangents
 from .textures import UNORM8_DECODE, WRAP_MODES, Texture, mip_levels, mip_texel_count
 from pbrwarp.kernels.lights import LightData
 from pbrwarp.kernels.scene_data import INFINITE_IOR, MaterialData, SceneData
@@ -80,18 +81,9 @@ class GpuScene:
 
 
 def _tangent_uv_set(prim) -> int | None:
-    """The uv set (0 or 1) from which ``prim``'s tangent frame is generated, or None when it needs
-    none (it has its own tangents, or nothing reads a frame: no normal maps, no anisotropy). The
-    material decides, so the geometry cache is keyed by it too."""
-    material = prim.material
-    if prim.tangents is not None or prim.uvs is None:
-        return None
-    if (material.normal_texture is None and material.clearcoat_normal_texture is None
-            and material.anisotropy_strength == 0.0):
-        return None
-    # the frame follows the uv set the normal map (else the coat's, else the anisotropy map) is read with
-    mapped = material.normal_texture or material.clearcoat_normal_texture or material.anisotropy_texture
-    return 1 if mapped is not None and mapped.texcoord == 1 and prim.uvs1 is not None else 0
+    """The uv set from which ``prim``'s tangent frame is generated (tangents.frame_uv_set), None
+    where it has its own tangents. The material decides, so the geometry cache is keyed by it too."""
+    return None if prim.tangents is not None else frame_uv_set(prim.material, prim.uvs, prim.uvs1)
 
 
 def _primitive_tangents(prim):
@@ -100,8 +92,6 @@ def _primitive_tangents(prim):
     uv_set = _tangent_uv_set(prim)
     if uv_set is None:
         return np.zeros((len(prim.positions), 4))
-    from .tangents import generate_tangents
-
     normals = prim.normals if prim.normals is not None else np.zeros_like(prim.positions)
     return generate_tangents(prim.positions, normals, prim.uvs1 if uv_set == 1 else prim.uvs, prim.faces)
 

@@ -16,6 +16,20 @@ from .errors import InputError
 _TINY = np.finfo(np.float64).tiny  # squared lengths at or below this count as zero
 
 
+def frame_uv_set(material, uvs, uvs1) -> int | None:
+    """The uv set (0 or 1) from which a mesh with ``material`` and uv sets ``uvs`` (TEXCOORD_0,
+    or None) and ``uvs1`` (TEXCOORD_1, or None) generates its tangent frame: the set the normal
+    map (else the clear coat's, else the anisotropy map) is read with. None when nothing reads a
+    frame (no normal maps, no anisotropy) or that set is missing."""
+    if (material.normal_texture is None and material.clearcoat_normal_texture is None
+            and material.anisotropy_strength == 0.0):
+        return None
+    mapped = material.normal_texture or material.clearcoat_normal_texture or material.anisotropy_texture
+    if mapped is not None and mapped.texcoord == 1 and uvs1 is not None:
+        return 1
+    return 0 if uvs is not None else None
+
+
 def generate_tangents(positions, normals, uvs, faces) -> np.ndarray:
     """glTF tangents (V, 4) float64 for a triangle mesh: unit ``xyz`` perpendicular to the vertex
     normal and handedness ``w`` = +1 or -1.
