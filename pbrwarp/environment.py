@@ -169,6 +169,17 @@ class Environment:
         data.rotation_sin = float(np.sin(self.rotation))
         return data
 
+    def sampler(self):
+        """The importance sampler of the environment's radiance, as kernels read it
+        (kernels.environment_sampling.EnvironmentSampler: directions drawn in proportion to
+        luminance, with their densities). Built from the texels on the first call in the process,
+        and shared by every later call from any thread; it does not depend on ``intensity`` or
+        ``rotation``, which the kernels take from ``data()``."""
+        from .kernels.environment_sampling import build_sampler
+        from .scene_cache import environment_sampler
+
+        return environment_sampler(self, lambda: build_sampler(self.texels))
+
     def sh_coefficients(self) -> np.ndarray:
         """(9, 3) float64 SH coefficients of the unscaled, unrotated radiance (order of kernels/sh.py)."""
         return self._prefiltered(None).coefficients.copy()
