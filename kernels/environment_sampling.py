@@ -24,7 +24,8 @@ import numpy as np
 import warp as wp
 
 from .equirect import PI, equirect_coordinates, texel_solid_angles
-from .ibl import EnvironmentData, to_environment_frame
+# EnvironmentSampler lives in kernels/ibl.py, as a field of EnvironmentData (env.sampler)
+from .ibl import EnvironmentData, EnvironmentSampler, to_environment_frame  # noqa: F401
 
 wp.set_module_options({"enable_backward": False})
 
@@ -33,20 +34,6 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 # The share of the mean luminance added to every texel's weight: with it about 0.1 % of the samples
 # spread uniformly over the sphere.
 UNIFORM_SHARE = 1.0e-3
-
-
-@wp.struct
-class EnvironmentSampler:
-    """A piecewise-constant distribution over an H x W equirect image (W = 2H)."""
-
-    # the rows' cumulative probabilities, H + 1 of them, from 0 to 1
-    row_cdf: wp.array(dtype=float)
-    # each row's cumulative conditional probabilities over its columns, W + 1 a row, 0 to 1
-    column_cdf: wp.array(dtype=float)
-    # each texel's density per steradian (its probability over its solid angle), row-major
-    texel_pdf: wp.array(dtype=float)
-    width: int
-    height: int
 
 
 def sampling_weights(texels: np.ndarray) -> np.ndarray:

@@ -154,8 +154,8 @@ class Environment:
     # ------------------------------------------------------------------ what the kernels read
     def data(self, threads: int | None = None):
         """The environment as the render kernel reads it (kernels.ibl.EnvironmentData): the source
-        and its GGX-prefiltered levels, its 9 SH coefficients, and the current intensity and
-        rotation. The first call in the process prefilters (on ``threads`` threads, all cores by
+        and its GGX-prefiltered levels, its 9 SH coefficients, its importance sampler
+        (``sampler()``), and the current intensity and rotation. The first call in the process prefilters (on ``threads`` threads, all cores by
         default) and projects; later calls, from any thread, share that work and make only a new
         struct (so a render never sees another's intensity or rotation change under it)."""
         from .kernels.ibl import EnvironmentData
@@ -164,6 +164,7 @@ class Environment:
         data = EnvironmentData()
         data.radiance = prefiltered.radiance
         data.sh = prefiltered.sh
+        data.sampler = self.sampler()
         data.intensity = self.intensity
         data.rotation_cos = float(np.cos(self.rotation))
         data.rotation_sin = float(np.sin(self.rotation))
