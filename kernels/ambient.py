@@ -12,6 +12,7 @@ from .dfg import dfg_lookup
 from .iridescence import F_Iridescence
 from .direction_sampling import (orthonormal_basis, pdf_cosine_hemisphere, pdf_ggx_vndf_reflection,
                                  sample_cosine_hemisphere, sample_ggx_vndf)
+from .environment_sampling import pdf_environment, sample_environment
 from .ibl import (EnvironmentData, F_SchlickRoughness, environment_irradiance, environment_radiance,
                   prefiltered_radiance)
 from .microfacet import D_GGX, PI, alpha_from_roughness
@@ -27,7 +28,8 @@ ENVIRONMENT_STREAM = wp.constant(1 << 24)
 
 @functools.cache
 def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multiscatter: bool, coupled: bool, brdf,
-                occluded, gltf_mix: bool = True, anisotropic: bool = False, iridescent: bool = False):
+                occluded, gltf_mix: bool = True, anisotropic: bool = False, iridescent: bool = False,
+                environment_sampled: bool = True):
     """ambient(scene, env, dfg, p, p_error, ng, n, v, base_color, metallic, roughness, specular, eta,
     kappa, f0_dielectric, seed, stream, anisotropy_t=0, anisotropy=0, thin_film=0) -> radiance reflected towards v of the environment's light
     (unoccluded; the caller applies the occlusion texture). ``brdf`` is the render kernel's own
@@ -41,8 +43,16 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
     about the bent normal (kernels/anisotropy.py), with the isotropic DFG table. ``iridescent``
     compiles in KHR_materials_iridescence: the Monte Carlo rung integrates the BRDF's thin-film
     Fresnel; the split sum mixes each lobe's f0 with the film's reflectance at n.v by the factor
-    before the DFG lookup (as the glTF sample viewer does)."""
+    before the DFG lookup (as the glTF sample viewer does). ``environment_sampled`` makes every
+    third Monte Carlo direction one drawn from the environment's radiance
+    (kernels/environment_sampling.py); without it the directions are only the BRDF's."""
     lagarde = fresnel == "lagarde"
+    # how many of the samples each strategy draws (k % strategies picks it), for the balance
+    # heuristic's mixture pdf, sum of count x pdf over samples
+    strategies = 3 if environment_sampled and samples >= 3 else 2
+    cosine_share = float((samples + strategies - 1) // strategies) / float(samples)
+    vndf_share = float((samples + strategies - 2) // strategies) / float(samples)
+    environment_share = 1.0 - cosine_share - vndf_share
 
     @wp.func
     def lobe_albedo(f0: wp.vec3, f90: wp.vec3, ab: wp.vec2, n_dot_v: float, roughness: float):
@@ -102,8 +112,9 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
                     v: wp.vec3, base_color: wp.vec3, metallic: float, roughness: float, specular: float,
                     eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, seed: int, stream: int,
                     anisotropy_t: wp.vec3, anisotropy: float, thin_film: wp.vec3) -> wp.vec3:
-        """Half the directions cosine-weighted, half GGX visible normals, weighted by the balance
-        heuristic (the mixture pdf; Veach 1997): unbiased for every BRDF rung."""
+        """Directions cosine-weighted, from GGX's visible normals and (``environment_sampled``)
+        from the environment's radiance, in turn, weighted by the balance heuristic (the mixture
+        pdf; Veach 1997): unbiased for every BRDF rung."""
         frame = orthonormal_basis(n)
         v_local = wp.transpose(frame) * v
         if v_local[2] <= 0.0:
@@ -114,20 +125,32 @@ def ambient_for(method: str, fresnel: str, samples: int, shadowed: bool, multisc
         for k in range(samples):
             u = wp.vec2(wp.randf(state), wp.randf(state))
             l_local = wp.vec3(0.0)
-            if k % 2 == 0:
+            l = wp.vec3(0.0)
+            env_pdf = float(0.0)
+            strategy = k % wp.static(strategies)
+            if strategy == 0:
                 l_local = sample_cosine_hemisphere(u)
-            else:
+                l = frame * l_local
+            elif strategy == 1:
                 h = sample_ggx_vndf(v_local, alpha, u)
                 l_local = 2.0 * wp.dot(v_local, h) * h - v_local
+                l = frame * l_local
+            else:
+                l, env_pdf = sample_environment(env.sampler, env, u)
+                l_local = wp.transpose(frame) * l
             if l_local[2] <= 0.0:
                 continue
-            l = frame * l_local
             # light from below the geometric surface cannot arrive
             if wp.dot(ng, l) <= 0.0:
                 continue
             h_local = wp.normalize(v_local + l_local)
             d = D_GGX(alpha, h_local[2], h_local[0] * h_local[0] + h_local[1] * h_local[1])
-            pdf = 0.5 * pdf_cosine_hemisphere(l_local[2]) + 0.5 * pdf_ggx_vndf_reflection(d, v_local[2], alpha)
+            pdf = (wp.static(cosine_share) * pdf_cosine_hemisphere(l_local[2])
+                   + wp.static(vndf_share) * pdf_ggx_vndf_reflection(d, v_local[2], alpha))
+            if wp.static(strategies == 3):
+                if strategy != 2:
+                    env_pdf = pdf_environment(env.sampler, env, l)
+                pdf = pdf + wp.static(environment_share) * env_pdf
             if pdf <= 0.0:
                 continue
             if wp.static(shadowed):

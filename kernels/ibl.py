@@ -16,11 +16,28 @@ wp.set_module_options({"enable_backward": False})
 
 
 @wp.struct
+class EnvironmentSampler:
+    """A piecewise-constant distribution over an H x W equirect image (W = 2H), with which
+    kernels/environment_sampling.py draws directions."""
+
+    # the rows' cumulative probabilities, H + 1 of them, from 0 to 1
+    row_cdf: wp.array(dtype=float)
+    # each row's cumulative conditional probabilities over its columns, W + 1 a row, 0 to 1
+    column_cdf: wp.array(dtype=float)
+    # each texel's density per steradian (its probability over its solid angle), row-major
+    texel_pdf: wp.array(dtype=float)
+    width: int
+    height: int
+
+
+@wp.struct
 class EnvironmentData:
     # level 0: the source radiance image; level k: GGX-prefiltered for roughness k / (count - 1)
     radiance: EquirectLevels
     # 9 SH coefficients of the source radiance (kernels/sh.py)
     sh: wp.array(dtype=wp.vec3)
+    # the importance sampler of the source radiance (kernels/environment_sampling.py)
+    sampler: EnvironmentSampler
     intensity: float
     rotation_cos: float
     rotation_sin: float

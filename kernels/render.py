@@ -83,7 +83,7 @@ def render_kernel(features):
     if ibl:
         ambient = ambient_for(ibl.method, ibl.fresnel, ibl.samples, ibl.shadowed, f.brdf.energy == "multiscatter",
                               f.brdf.coupling != "none" and f.diffuse and f.specular, brdf, occluded,
-                              f.brdf.metallic_mix == "gltf", f.anisotropy, f.iridescence)
+                              f.brdf.metallic_mix == "gltf", f.anisotropy, f.iridescence, ibl.environment_sampling)
 
     @wp.func
     def base_color_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV) -> wp.vec3:

@@ -154,8 +154,8 @@ class Environment:
     # ------------------------------------------------------------------ what the kernels read
     def data(self, threads: int | None = None):
         """The environment as the render kernel reads it (kernels.ibl.EnvironmentData): the source
-        and its GGX-prefiltered levels, its 9 SH coefficients, and the current intensity and
-        rotation. The first call in the process prefilters (on ``threads`` threads, all cores by
+        and its GGX-prefiltered levels, its 9 SH coefficients, its importance sampler
+        (``sampler()``), and the current intensity and rotation. The first call in the process prefilters (on ``threads`` threads, all cores by
         default) and projects; later calls, from any thread, share that work and make only a new
         struct (so a render never sees another's intensity or rotation change under it)."""
         from .kernels.ibl import EnvironmentData
@@ -164,10 +164,22 @@ class Environment:
         data = EnvironmentData()
         data.radiance = prefiltered.radiance
         data.sh = prefiltered.sh
+        data.sampler = self.sampler()
         data.intensity = self.intensity
         data.rotation_cos = float(np.cos(self.rotation))
         data.rotation_sin = float(np.sin(self.rotation))
         return data
+
+    def sampler(self):
+        """The importance sampler of the environment's radiance, as kernels read it
+        (kernels.environment_sampling.EnvironmentSampler: directions drawn in proportion to
+        luminance, with their densities). Built from the texels on the first call in the process,
+        and shared by every later call from any thread; it does not depend on ``intensity`` or
+        ``rotation``, which the kernels take from ``data()``."""
+        from .kernels.environment_sampling import build_sampler
+        from .scene_cache import environment_sampler
+
+        return environment_sampler(self, lambda: build_sampler(self.texels))
 
     def sh_coefficients(self) -> np.ndarray:
         """(9, 3) float64 SH coefficients of the unscaled, unrotated radiance (order of kernels/sh.py)."""

@@ -50,6 +50,8 @@ Process-wide: :data:`PROCESS_WIDE`, for what depends on no scene:
 - ("prefiltered environment", id): an Environment's prefiltered levels and SH coefficients
   (:func:`prefiltered_environment`). Several scenes may share one Environment, whose texels are
   read-only, so it is prefiltered once for all of them; dropped when the Environment is collected.
+- ("environment sampler", id): an Environment's importance sampler (:func:`environment_sampler`),
+  kept and dropped in the same way.
 
 Locks. Each cache has one lock over its table, held only to look up, store or drop an entry, never
 while building one. Building a slot holds that slot's own build lock: a thread that needs a slot
@@ -239,7 +241,17 @@ PROCESS_WIDE = Cache()
 def prefiltered_environment(environment, build):
     """``environment``'s prefiltered data, ``build()`` the first time in this process; dropped from
     PROCESS_WIDE when the environment is collected (before its id can name another)."""
-    slot = ("prefiltered environment", id(environment))
+    return _of_environment("prefiltered environment", environment, build)
+
+
+def environment_sampler(environment, build):
+    """``environment``'s importance sampler, ``build()`` the first time in this process; dropped
+    as its prefiltered data is."""
+    return _of_environment("environment sampler", environment, build)
+
+
+def _of_environment(kind, environment, build):
+    slot = (kind, id(environment))
 
     def build_and_forget_later():
         value = build()

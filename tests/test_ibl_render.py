@@ -34,12 +34,16 @@ def test_white_furnace_lambert_sphere_is_exactly_white():
     assert 0.3 < frame.alpha.mean() < 0.9
 
 
-def test_white_furnace_lambert_monte_carlo_converges_to_white():
+@pytest.mark.parametrize("environment_sampling, spread", [(False, 0.1), (True, 0.15)])
+def test_white_furnace_lambert_monte_carlo_converges_to_white(environment_sampling, spread):
+    """Unbiased with or without environment sampling; a uniform environment gains nothing from
+    it and loses a third of the BRDF's directions (half of its own fall below the surface), so
+    the pixels spread more (measured: 0.109 against 0.1 at most)."""
     frame = render_checked(sphere_in(pw.Environment.uniform((1, 1, 1)), WHITE_LAMBERT), CAMERA, size=(32, 32),
-                           ibl=pw.IBL(method="monte_carlo", samples=256))
+                           ibl=pw.IBL(method="monte_carlo", samples=256, environment_sampling=environment_sampling))
     covered = frame.alpha > 0
     assert abs(frame.rgb[covered].mean() - 1.0) <= 2e-3
-    assert np.abs(frame.rgb[covered] - 1.0).max() <= 0.1
+    assert np.abs(frame.rgb[covered] - 1.0).max() <= spread
 
 
 @pytest.mark.parametrize("method", ["split_sum", "monte_carlo"])
