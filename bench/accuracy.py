@@ -192,6 +192,7 @@ def main(argv=None):
                  "flip": 0.0, "ms": frame_ms(), "ns_per_eval": None})
     ibl_rows(add, render, args.repeats)
     mip_ms = texture_filter_rows(add, render, args.repeats)
+    transmission_rows(add, render, args.repeats)
     print(f"done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
 
     names = [n for n, _, _ in scenes]
@@ -211,7 +212,10 @@ def main(argv=None):
               "shadows rows: against ray-traced shadows; shadow-map times include rasterizing the maps except "
               "where they are reused (a new camera, the same lights and geometry); texture filter rows (a brick floor "
               "of their own, per-scene columns empty, ms for its one frame at the row's spp): against bilinear "
-              f"lookups at 256 spp; its mip chains take {mip_ms:.0f} ms to build, once per texture. Times: spp 1 "
+              f"lookups at 256 spp; its mip chains take {mip_ms:.0f} ms to build, once per texture; transmission "
+              "rows (a rough glass slab before a brick wall under an HDR; error over the glass's pixels only; ms "
+              f"for its one frame at the row's spp): against the sampled rung at 256 spp with {GLASS_REFERENCE_IBL.samples} "
+              "shadowed environment directions per sample. Times: spp 1 "
               "unless a row says otherwise, medians, summed over the four scenes.",
               "", "![error vs time](accuracy.png)", "",
               "Differences to the reference (tone-mapped, amplified 4x), one row per rung:", "",
@@ -290,6 +294,43 @@ def texture_filter_rows(add, render, repeats) -> float:
     return 1e3 * median_time(lambda: gpu_scene._build_texels(prims, None), repeats)
 
 
+GLASS_REFERENCE_IBL = pw.IBL(method="monte_carlo", samples=8, shadowed=True)
+
+
+def glass_scene(with_wall=True):
+    """A rough (0.25) glass slab 0.3 units thick before a brick wall, under the Venice sunset HDR
+    (or the procedural sky without the shared assets)."""
+    scene = pw.Scene()
+    if with_wall:
+        scene.add_mesh(meshes.normal_mapped_tile(size=6.0, repeats=3.0),
+                       transform=trimesh.transformations.translation_matrix((0.0, 0.0, -1.5)))
+    slab = trimesh.creation.box(extents=(2.5, 2.5, 0.3))
+    scene.add_mesh(slab, pw.Material(base_color=(1.0, 1.0, 1.0), roughness=0.25, transmission=1.0, thickness=0.3))
+    hdr = meshes.ASSETS / "hdr" / "venice_sunset_1k.hdr"
+    try:
+        scene.environment = pw.Environment.load(hdr)
+    except (pw.PbrwarpError, ImportError):
+        scene.environment = pw.Environment.sky()
+    return scene, pw.Camera.look_at(eye=(0.8, 0.6, 5.0), target=(0.0, 0.0, -0.5), fov_y=45.0)
+
+
+def transmission_rows(add, render, repeats):
+    """Rough transmission rungs: "prefiltered" (split-sum environment light; objects behind the
+    glass stay sharp) and "sampled" (Monte Carlo environment light; the GGX transmission lobe
+    sampled per camera sample), against the sampled rung at 256 spp, over the glass's pixels."""
+    scene, cam = glass_scene()
+    glass_only, _ = glass_scene(with_wall=False)
+    glass = render(glass_only, cam, background=(0.0, 0.0, 0.0)).alpha > 0
+    reference = render(scene, cam, spp=256, ibl=GLASS_REFERENCE_IBL)
+    rungs = [("prefiltered", spp, None) for spp in (1, 4, 16)]
+    rungs += [("sampled", spp, GLASS_REFERENCE_IBL) for spp in (4, 16, 64)]
+    for name, spp, ibl in rungs:
+        frame = render(scene, cam, spp=spp, ibl=ibl)
+        label = f"{name}, spp={spp}" + (" (default)" if name == "prefiltered" and spp == 1 else "")
+        add("transmission", label, [rel_rmse(frame.rgb, reference.rgb, glass)], [flip(frame, reference)],
+            1e3 * median_time(lambda: render(scene, cam, spp=spp, ibl=ibl), repeats))
+
+
 def difference_image(frame, reference):
     """|tone-mapped test - tone-mapped reference|, amplified 4x, as uint8 RGB."""
     d = np.abs(frame.to_srgb8().astype(np.int16) - reference.to_srgb8().astype(np.int16)) * 4
@@ -321,7 +362,7 @@ def replot():
 
 
 # Row families measured on a scene of their own, plotted apart from the four report scenes'.
-ONE_SCENE_FAMILIES = ("ibl", "texture filter")
+ONE_SCENE_FAMILIES = ("ibl", "texture filter", "transmission")
 
 
 def plot(rows, path):
@@ -338,9 +379,9 @@ def plot(rows, path):
     colours = {"preset": "black", "diffuse": "tab:green", "distribution": "tab:purple", "geometry": "tab:blue",
                "fresnel": "tab:orange", "energy": "tab:olive", "coupling": "tab:cyan", "model": "tab:pink",
                "metallic_mix": "gold", "sampling": "tab:red", "shadows": "tab:brown", "ibl": "tab:gray",
-               "texture filter": "teal"}
+               "texture filter": "teal", "transmission": "tab:blue"}
     floor = 1e-4  # the reference itself (error 0) sits on the floor of the log axis
-    fig, axes = plt.subplots(1, 4, figsize=(22, 5), dpi=110)
+    fig, axes = plt.subplots(1, 5, figsize=(27, 5), dpi=110)
     panels = ((axes[0], [r for r in rows if r["ns_per_eval"] is not None], "ns_per_eval",
                "BRDF cost (ns per evaluation, one thread)", "BRDF rungs and presets (4 spp)"),
               (axes[1], [r for r in rows if r["ns_per_eval"] is None and r["family"] not in ONE_SCENE_FAMILIES], "ms",
@@ -348,7 +389,9 @@ def plot(rows, path):
               (axes[2], [r for r in rows if r["family"] == "ibl"], "ms",
                "time for the HDR-lit frame (ms, 2 cores)", "environment light (vs 1024 shadowed directions)"),
               (axes[3], [r for r in rows if r["family"] == "texture filter"], "ms",
-               "time for the brick floor frame (ms, 2 cores)", "texture filters (vs bilinear at 256 spp)"))
+               "time for the brick floor frame (ms, 2 cores)", "texture filters (vs bilinear at 256 spp)"),
+              (axes[4], [r for r in rows if r["family"] == "transmission"], "ms",
+               "time for the glass frame (ms, 2 cores)", "rough transmission (vs sampled, 256 spp)"))
     for ax, subset, key, xlabel, title in panels:
         points = [(max(r[key], 0.1), max(r["rel_rmse"], floor), r) for r in subset]
         for x, err, r in points:

@@ -371,6 +371,8 @@ def render_kernel(features):
                     dir_dx = camera_ray_direction(cam, float(px) + offset[0] + step, float(py) + offset[1])
                     dir_dy = camera_ray_direction(cam, float(px) + offset[0], float(py) + offset[1] + step)
                 origin = cam.eye
+                camera_d = d
+                travelled = float(0.0)
                 # the weight of what lies further along the ray, and the part of the sample no
                 # surface covers (alpha-blended surfaces cover part of it)
                 throughput = wp.vec3(1.0)
@@ -389,8 +391,11 @@ def render_kernel(features):
                     mat = scene.materials[h.material]
                     uv0 = hit_uv(scene, h)
                     # the footprint of the camera ray's differentials, also for surfaces seen through
-                    # refracting ones (whose magnification it ignores)
-                    uv = hit_texcoords(scene, h, uv0, cam.eye, dir_dx, dir_dy)
+                    # refracting ones: the pencil keeps its spread about the refracted ray over the
+                    # whole distance travelled (a refraction's magnification is ignored)
+                    travelled = travelled + wp.length(h.p - origin)
+                    uv = hit_texcoords(scene, h, uv0, h.p - d * travelled, d + (dir_dx - camera_d),
+                                       d + (dir_dy - camera_d))
                     if wp.static(f.volume):
                         if max_channel(sigma) > 0.0:  # absorbed on the way from inside a volume
                             throughput = wp.cw_mul(throughput, beer_lambert(sigma, wp.length(h.p - origin)))

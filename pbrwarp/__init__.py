@@ -36,6 +36,7 @@ _load_checkout_subpackages()
 
 from .brdf import BRDF  # noqa: E402 - after the subpackages it imports
 from .camera import Camera
+from .denoise import denoise
 from .diagnostics import FrameCheck, check
 from .environment import Environment
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError, ResourceError
@@ -53,6 +54,6 @@ from .textures import Texture
 __all__ = [
     "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "IBL", "InputError",
     "InputTypeError", "LoadLimits", "Material", "PbrwarpError", "PointLight", "Primitive", "ResourceError", "Scene", "ShadowMap", "SpotLight",
-    "Texture", "check", "explain", "render",
+    "Texture", "check", "denoise", "explain", "render",
 ]
 __version__ = "0.1.0"

@@ -59,6 +59,9 @@ class Frame:
     - ``normal``: (H, W, 3) world-space shading normal (mean over the pixel's hit samples), 0 on miss.
     - ``alpha``: (H, W) fraction of the pixel's samples that hit a surface.
     - ``background``: the linear RGB radiance ``rgb`` was composited over.
+    - ``albedo``: (H, W, 3) float32 in [0, 1], the first surface's reflectance (mean over the
+      pixel's samples, 0 on miss), where the integrator records it, else None; what
+      :func:`pbrwarp.denoise` guides the denoiser with.
 
     ``depth`` and ``normal`` are None for ``render(aovs=False)``.
     """
@@ -68,6 +71,7 @@ class Frame:
     normal: np.ndarray
     alpha: np.ndarray
     background: tuple = (0.0, 0.0, 0.0)
+    albedo: np.ndarray | None = None
 
     @property
     def foreground(self) -> np.ndarray:

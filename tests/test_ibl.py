@@ -30,6 +30,7 @@ from pbrwarp.kernels.ibl import (
 from pbrwarp.kernels.sh import SH_CLAMPED_COSINE_RESIDUAL
 
 from assets import hdr
+from statistics import chi_square_ok
 
 
 
@@ -319,15 +320,6 @@ def vndf_reflection_pdf(l, v, alpha):
     d = np.where(h[..., 2] > 0, a2 / (np.pi * (h[..., 2] ** 2 * (a2 - 1) + 1) ** 2), 0.0)
     g1 = 2 * v[2] / (v[2] + np.sqrt(a2 + (1 - a2) * v[2] ** 2))
     return g1 * d / (4 * v[2])
-
-
-def chi_square_ok(counts, expected):
-    """Pearson's statistic against the 99.9% quantile (Wilson-Hilferty), bins with >= 5 expected."""
-    keep = expected >= 5
-    stat = ((counts[keep] - expected[keep]) ** 2 / expected[keep]).sum()
-    dof = keep.sum() - 1
-    quantile = dof * (1 - 2 / (9 * dof) + 3.09 * math.sqrt(2 / (9 * dof))) ** 3
-    return stat < quantile, stat, quantile
 
 
 def test_orthonormal_basis_takes_z_to_the_normal_and_is_a_rotation():

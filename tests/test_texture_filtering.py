@@ -191,3 +191,24 @@ def test_cli_texture_filter(tmp_path):
     assert main(["render", str(mesh), "-o", str(out), "--size", "8x8", "--texture-filter", "bilinear"]) == 0
     assert out.exists()
     assert main(["render", str(mesh), "-o", str(out), "--size", "8x8", "--texture-filter", "nearest"]) == 2
+
+
+def test_footprint_behind_a_refracting_slab_is_the_pencils_not_the_shift():
+    """A magnified texture (about 0.7 texels a pixel: level 0) seen obliquely through a smooth
+    glass slab 2 units thick. Refraction shifts each ray sideways by several texels, but a pencil
+    of rays a pixel wide stays about as wide: the footprint is still below a texel, so trilinear
+    lookups read level 0 and equal bilinear ones."""
+    scene = pw.Scene()
+    scene.add_mesh(quad(size=2.0, material=unlit(random_texture(32))))
+    slab = quad(size=8.0, z=2.5, material=pw.Material(transmission=1.0, thickness=2.0, roughness=0.0))
+    back = quad(size=8.0, z=0.5, material=pw.Material(transmission=1.0, thickness=2.0, roughness=0.0))
+    back.faces = back.faces[:, ::-1]
+    back.normals = -back.normals
+    scene.add_mesh(slab)
+    scene.add_mesh(back)
+    cam = pw.Camera.look_at(eye=(1.2, 0.6, 4.5), target=(0.0, 0.0, 0.0), fov_y=20.0)
+    trilinear = render_checked(scene, cam, size=(48, 32), background=(0.0, 0.0, 0.0))
+    bilinear = render_checked(scene, cam, size=(48, 32), background=(0.0, 0.0, 0.0), texture_filter="bilinear")
+    seen = bilinear.rgb.max(axis=2) > 0.05
+    assert seen.mean() > 0.3
+    np.testing.assert_allclose(trilinear.rgb[seen], bilinear.rgb[seen], atol=1e-4)

@@ -13,11 +13,14 @@ import warp as wp
 import pbrwarp as pw
 from pbrwarp.features import scene_features
 from pbrwarp.gpu_scene import upload
-from pbrwarp.kernels.transmission import beer_lambert, refract, refract_through, transmitted_share
+from pbrwarp.kernels.transmission import (beer_lambert, refract, refract_through, sample_rough_interface,
+                                          sample_thin_lobe, transmitted_share)
 from pbrwarp.scene import Primitive
 
+import reference as ref
 from assets import BOARDS, board
 from scenes import head_on_camera, quad, render_checked
+from statistics import chi_square_ok
 
 GLOW = np.array([0.2, 0.5, 0.9])  # nits of the emitter behind the glass
 TINT = (0.9, 0.6, 0.3)
@@ -569,3 +572,166 @@ def test_transmission_texture_varies_the_f0_mix_coupling_per_pixel():
     special = render_checked(scene, cam, size=(32, 32), brdf=brdf)
     general = render_checked(scene, cam, size=(32, 32), brdf=brdf, specialize=False)
     np.testing.assert_allclose(special.rgb, general.rgb, rtol=1e-6, atol=1e-30)
+
+
+# ---------------------------------------------------------------------------- rough lobes' sampling
+@wp.kernel(enable_backward=False)
+def draw_lobes(d: wp.vec3, n: wp.vec3, eta: float, roughness: float, seed: int,
+               interface: wp.array(dtype=wp.vec3), interface_weight: wp.array(dtype=float),
+               interface_refracts: wp.array(dtype=int), thin: wp.array(dtype=wp.vec3),
+               thin_weight: wp.array(dtype=float)):
+    i = wp.tid()
+    state = wp.rand_init(seed, i)
+    u = wp.vec2(wp.randf(state), wp.randf(state))
+    refracts, direction, weight = sample_rough_interface(d, n, n, eta, roughness, u)
+    interface[i] = direction
+    interface_weight[i] = weight
+    interface_refracts[i] = wp.where(refracts, 1, 0)
+    through, thin_w = sample_thin_lobe(d, n, n, roughness, u)
+    thin[i] = through
+    thin_weight[i] = thin_w
+
+
+def draw_lobe_samples(v, eta, roughness, count=400_000, seed=3):
+    """Both samplers' draws for a ray of direction -v meeting a surface of normal +z (shading and
+    geometric), as float64 arrays: interface directions, weights and refraction flags; thin-wall
+    directions and weights."""
+    outs = [wp.zeros(count, dtype=t, device="cpu") for t in (wp.vec3, float, int, wp.vec3, float)]
+    wp.launch(draw_lobes, dim=count, device="cpu",
+              inputs=[wp.vec3(*(-np.asarray(v))), wp.vec3(0.0, 0.0, 1.0), eta, roughness, seed, *outs])
+    return [o.numpy().astype(np.float64) for o in outs]
+
+
+def g1_ggx(cos, alpha):
+    """Smith's masking of GGX for a direction at cos theta to the normal (Walter et al. 2007, eq. 34)."""
+    a2 = alpha**2
+    return 2 * cos / (cos + np.sqrt(a2 + (1 - a2) * cos**2))
+
+
+def visible_normals_pdf(m, v, alpha):
+    """Heitz 2018's distribution of the GGX normals visible from v: G1(v) max(0, v.m) D(m) / v.z."""
+    m_z = np.clip(m[..., 2], 0.0, 1.0)
+    d = np.where(m[..., 2] > 0, ref.d_ggx(m_z, alpha), 0.0)
+    return g1_ggx(v[2], alpha) * np.maximum(m @ v, 0.0) * d / v[2]
+
+
+def rough_interface_pdfs(l, v, eta, alpha):
+    """The solid-angle densities of a direction l drawn by refracting v through a visible GGX
+    normal m (Walter et al. 2007, eq. 17: dw_m / dw_l = eta^2 |l.m| / (v.m + eta l.m)^2, with
+    m = -(v + eta l) turned up), and of one reflected off m where m reflects totally
+    (dw_m / dw_l = 1 / (4 v.m)); float64, (refracted, reflected)."""
+    half = v + eta * l
+    m_t = half * np.where(half[..., 2:] < 0, -1.0, 1.0) / np.linalg.norm(half, axis=-1, keepdims=True)
+    v_m, l_m = m_t @ v, np.sum(l * m_t, -1)
+    transmits = (v_m > 0) & (l_m < 0)
+    refracted = np.where(transmits, visible_normals_pdf(m_t, v, alpha) * eta**2 * np.abs(l_m)
+                         / np.maximum((v_m + eta * l_m) ** 2, 1e-300), 0.0)
+    m_r = ref.normalize(v + l)
+    v_m = m_r @ v
+    total = (1 - v_m**2) / eta**2 >= 1.0
+    reflected = np.where(total & (v_m > 0), visible_normals_pdf(m_r, v, alpha) / (4 * np.maximum(v_m, 1e-300)), 0.0)
+    return refracted, reflected
+
+
+def walter_lobe_cosine(l, v, eta, alpha):
+    """Walter et al. 2007's rough dielectric BSDF times |n.l|, without its Fresnel factor (the
+    caller's): the BTDF (eq. 21) below the surface, the BRDF under total internal reflection
+    (F = 1) above it; separable Smith G = G1(v) G1(l); float64."""
+    half = v + eta * l
+    m_t = half * np.where(half[..., 2:] < 0, -1.0, 1.0) / np.linalg.norm(half, axis=-1, keepdims=True)
+    v_m, l_m = m_t @ v, np.sum(l * m_t, -1)
+    g = g1_ggx(v[2], alpha) * g1_ggx(np.abs(l[..., 2]), alpha)
+    d_t = np.where(m_t[..., 2] > 0, ref.d_ggx(np.clip(m_t[..., 2], 0, 1), alpha), 0.0)
+    btdf = (np.abs(v_m * l_m) / (v[2] * np.abs(l[..., 2])) * eta**2 * g * d_t
+            / np.maximum((v_m + eta * l_m) ** 2, 1e-300))
+    transmitted = np.where((l[..., 2] < 0) & (v_m > 0) & (l_m < 0), btdf * np.abs(l[..., 2]), 0.0)
+    m_r = ref.normalize(v + l)
+    v_m = m_r @ v
+    total = ((1 - v_m**2) / eta**2 >= 1.0) & (v_m > 0) & (m_r[..., 2] > 0)
+    brdf = g * ref.d_ggx(np.clip(m_r[..., 2], 0, 1), alpha) / (4 * v[2] * np.maximum(l[..., 2], 1e-300))
+    reflected = np.where(total & (l[..., 2] > 0), brdf * l[..., 2], 0.0)
+    return transmitted + reflected
+
+
+SPHERE_STEPS = 600  # quadrature cells per unit of cos theta and per pi of phi
+SPHERE_BINS = 16
+
+
+def sphere_grid():
+    """Midpoints of a (cos theta, phi) grid over the sphere, and each cell's solid angle."""
+    mu = -1 + (np.arange(2 * SPHERE_STEPS) + 0.5) / SPHERE_STEPS
+    phi = -np.pi + (np.arange(2 * SPHERE_STEPS) + 0.5) * np.pi / SPHERE_STEPS
+    m, p = np.meshgrid(mu, phi, indexing="ij")
+    s = np.sqrt(1 - m**2)
+    return np.stack([s * np.cos(p), s * np.sin(p), m], -1), (1 / SPHERE_STEPS) * (np.pi / SPHERE_STEPS)
+
+
+def binned(density, cell):
+    """A density on sphere_grid() integrated over SPHERE_BINS x SPHERE_BINS (cos theta, phi) bins."""
+    k = 2 * SPHERE_STEPS // SPHERE_BINS
+    return density.reshape(SPHERE_BINS, k, SPHERE_BINS, k).sum((1, 3)) * cell
+
+
+def histogram(directions):
+    counts, _, _ = np.histogram2d(directions[:, 2], np.arctan2(directions[:, 1], directions[:, 0]),
+                                  bins=SPHERE_BINS, range=[[-1, 1], [-np.pi, np.pi]])
+    return counts
+
+
+LOBE_CASES = [  # (roughness, eta, angle of incidence): into glass, out of it (with total internal
+    (0.3, 1.5, 0.3), (0.6, 1.5, 1.2), (1.0, 1.33, 0.7),  # reflection), near head-on and grazing
+    (0.5, 1 / 1.5, 0.4), (0.8, 1 / 1.33, 1.0), (0.4, 1 / 1.5, 1.35)]
+
+
+@pytest.mark.parametrize("roughness, eta, theta", LOBE_CASES)
+def test_rough_interface_samples_follow_walters_transmission_lobe(roughness, eta, theta):
+    """sample_rough_interface draws a visible GGX normal m (Heitz 2018) and refracts through it, or
+    reflects where m reflects totally: its directions' density is the visible-normal density
+    times the Jacobian of m -> direction (Walter et al. 2007), and its weight G1(l) is Walter's
+    BSDF times |n.l| over that density (Fresnel aside). Chi-square over (cos theta, phi) bins,
+    refracted and reflected samples counted apart."""
+    alpha = roughness**2
+    v = np.array([np.sin(theta), 0.0, np.cos(theta)])
+    l, weight, refracts, _, _ = draw_lobe_samples(v, eta, roughness)
+    refracts = refracts.astype(bool)
+    grid, cell = sphere_grid()
+    refracted, reflected = rough_interface_pdfs(grid, v, eta, alpha)
+    # the reference density integrates to 1 (every visible normal makes one direction); no
+    # reflection where light enters the denser side
+    assert abs((refracted + reflected).sum() * cell - 1.0) < 3e-3
+    assert eta < 1 or not reflected.any()
+    counts = np.concatenate([histogram(l[refracts]).ravel(), histogram(l[~refracts]).ravel()])
+    expected = np.concatenate([binned(refracted, cell).ravel(), binned(reflected, cell).ravel()]) * len(l)
+    ok, stat, quantile = chi_square_ok(counts, expected)
+    assert ok, (stat, quantile)
+    # the weight: G1 of the new direction, 0 where it leaves on the wrong side of the surface
+    wrong_side = np.where(refracts, l[:, 2] >= 0, l[:, 2] <= 0)
+    np.testing.assert_array_equal(weight[wrong_side], 0.0)
+    np.testing.assert_allclose(weight[~wrong_side], g1_ggx(np.abs(l[~wrong_side, 2]), alpha), rtol=1e-4)
+    # which is Walter's lobe over the density drawn, on the side each part may leave by
+    lobe = walter_lobe_cosine(grid, v, eta, alpha)
+    kept = refracted * (grid[..., 2] < 0) + reflected * (grid[..., 2] > 0)
+    np.testing.assert_allclose(lobe, kept * g1_ggx(np.abs(grid[..., 2]), alpha), rtol=1e-6, atol=1e-9 * lobe.max())
+
+
+@pytest.mark.parametrize("roughness, theta", [(0.3, 0.3), (0.7, 1.2), (1.0, 0.6)])
+def test_thin_lobe_samples_follow_the_mirrored_visible_normal_reflection(roughness, theta):
+    """sample_thin_lobe reflects v off a visible GGX normal and mirrors the result through the
+    surface's plane: below the surface, its density is the reflection's, G1(v) D(m) / (4 v.z)
+    at the mirror image (Heitz 2018, eq. 17); reflections that would leave below the surface
+    come back as d with weight 0, as often as the density says they happen."""
+    alpha = roughness**2
+    v = np.array([np.sin(theta), 0.0, np.cos(theta)])
+    _, _, _, through, weight = draw_lobe_samples(v, 1.5, roughness)
+    grid, cell = sphere_grid()
+    mirrored = grid * [1.0, 1.0, -1.0]
+    m = ref.normalize(v + mirrored)
+    density = np.where(grid[..., 2] < 0, visible_normals_pdf(m, v, alpha) / (4 * np.maximum(m @ v, 1e-300)), 0.0)
+    kept = weight > 0
+    np.testing.assert_allclose(through[~kept], np.broadcast_to(-v, through[~kept].shape), atol=1e-6)
+    counts = np.append(histogram(through[kept]).ravel(), (~kept).sum())
+    expected_bins = binned(density, cell).ravel()
+    expected = np.append(expected_bins, 1.0 - expected_bins.sum()) * len(through)
+    ok, stat, quantile = chi_square_ok(counts, expected)
+    assert ok, (stat, quantile)
+    np.testing.assert_allclose(weight[kept], g1_ggx(-through[kept, 2], alpha), rtol=1e-4)
