@@ -34,16 +34,18 @@ from .microfacet import alpha_from_roughness
 from .random import sample_key, uniform, uniform2
 from .render import ROWS_TAKEN, STOP
 from .robust import FLOAT32_MAX, RAY_FAR, clamp_to_float32_max, offset_ray_origin, safe_normalize
-from .scene_data import SceneData, triangle_corners
+from .scene_data import MaterialData, SceneData, triangle_corners
 from .surface import MAX_PASS_THROUGH, SurfaceHit, segment_to_point, shadow_segment, surface_hit, surface_tests
 from .texture_coords import texture_lookups
+from .transmission import transmitted_share
 from .work_queue import read_counter, take_next_item_from
 
 wp.set_module_options({"enable_backward": False})
 
 # The random dimensions of a sample: the pixel position, then a block per bounce (the light's
-# choice, the point on it, the lobe's choice, the direction, Russian roulette), then the coverage
-# draws of alpha-blended surfaces (one per surface passed per bounce), far past any bounce's.
+# choice, the point on it, the lobe's choice, the direction, Russian roulette), then the draws of
+# alpha-blended coverage and of passing transmissive walls (two per surface met per bounce), far
+# past any bounce's.
 PIXEL_DIMENSION = wp.constant(0)
 FIRST_BOUNCE_DIMENSION = wp.constant(2)
 DIMENSIONS_PER_BOUNCE = wp.constant(8)
@@ -53,6 +55,8 @@ LOBE_CHOICE = wp.constant(3)
 DIRECTION = wp.constant(4)
 ROULETTE = wp.constant(6)
 COVERAGE_DIMENSION = wp.constant(1 << 24)
+# A path passes a thin transmissive wall with at most this probability (the rest reflects).
+MAX_PASSED = wp.constant(0.95)
 # Russian roulette starts at this bounce (0: the first surface), and keeps at most this share.
 ROULETTE_FROM_BOUNCE = wp.constant(3)
 MAX_SURVIVAL = wp.constant(0.95)
@@ -79,22 +83,72 @@ def path_kernel(features):
     inputs = material_lookups(f, texture)
     base_color_at, surface_inputs, emission_at = inputs.base_color_at, inputs.surface_inputs, inputs.emission_at
     anisotropy_at, thin_film_at, shading_normal = inputs.anisotropy_at, inputs.thin_film_at, inputs.shading_normal
+    transmission_at = inputs.transmission_at
+
+    @wp.func
+    def wall_share(scene: SceneData, h: SurfaceHit, mat: MaterialData, d: wp.vec3) -> wp.vec3:
+        """The share of light a thin transmissive wall passes straight through along ``d``, per
+        channel, 0 for an opaque surface: transmitted_share at the geometric normal's cosine (the
+        same both ways), textures read at full resolution."""
+        uv = hit_texcoords(scene, h, hit_uv(scene, h), h.p, d, d)
+        t = transmission_at(scene, mat, uv)
+        if t <= 0.0:
+            return wp.vec3(0.0)
+        metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
+        return transmitted_share(base_color_at(scene, h, mat, uv), metallic, t, specular, f0_dielectric,
+                                 wp.abs(wp.dot(h.ng, d)))
+
+    @wp.func
+    def transmittance(scene: SceneData, origin: wp.vec3, direction: wp.vec3, max_t: float) -> wp.vec3:
+        """The share of light that travels the shadow ray's segment: 0 where an opaque surface
+        blocks it, the product of the thin transmissive walls' shares on it otherwise (straight
+        through, as paths pass them); after MAX_PASS_THROUGH walls, 0."""
+        if wp.static(not f.transmission):
+            if occluded(scene, origin, direction, max_t):
+                return wp.vec3(0.0)
+            return wp.vec3(1.0)
+        o = origin
+        reach = max_t
+        passed = wp.vec3(1.0)
+        for _ in range(MAX_PASS_THROUGH):
+            q = wp.mesh_query_ray(scene.mesh, o, direction, reach)
+            if not q.result:
+                return passed
+            b = surface_hit(scene, q.face, q.u, q.v, direction)
+            mat = scene.materials[b.material]
+            if not is_cut_out(scene, b, mat, hit_uv(scene, b)):
+                if mat.transmission <= 0.0:
+                    return wp.vec3(0.0)
+                share = wall_share(scene, b, mat, direction)
+                if max_channel(share) <= 0.0:
+                    return wp.vec3(0.0)
+                passed = wp.cw_mul(passed, share)
+            o = offset_ray_origin(b.p, b.p_error, b.ng, direction)
+            reach = reach - q.t
+        return wp.vec3(0.0)
 
     @wp.func
     def find_surface(scene: SceneData, origin: wp.vec3, d: wp.vec3, camera_ray: bool, key: wp.uint32, bounce: int):
-        """(found, hit) of the surface the ray from ``origin`` along ``d`` stops at: past alpha
-        cut-outs, past single-sided back faces for camera rays (as the direct kernel), and past an
-        alpha-blended surface with probability 1 - alpha (its coverage, drawn). After
-        MAX_PASS_THROUGH surfaces passed, a miss."""
+        """(found, hit, weight, met) of the surface the ray from ``origin`` along ``d`` stops at:
+        past alpha cut-outs, past single-sided back faces for camera rays (as the direct kernel),
+        past an alpha-blended surface with probability 1 - alpha (its coverage, drawn), and past a
+        thin transmissive wall with probability p = min(max channel of its share, MAX_PASSED):
+        ``weight`` is then multiplied by share / p, or by 1 / (1 - p) where the ray stops at it,
+        so that on average it passes its share and reflects the rest. ``met``: whether a
+        transmissive wall was met (it covers the pixel). After MAX_PASS_THROUGH surfaces passed,
+        a miss."""
         o = origin
         h = SurfaceHit()
+        weight = wp.vec3(1.0)
+        met = False
         for k in range(MAX_PASS_THROUGH):
             q = wp.mesh_query_ray(scene.mesh, o, d, RAY_FAR)
             if not q.result:
-                return False, h
+                return False, h, weight, met
             h = surface_hit(scene, q.face, q.u, q.v, d)
             passes = False
-            if wp.static(f.pass_through or f.alpha_blend):
+            draw = COVERAGE_DIMENSION + 2 * (bounce * MAX_PASS_THROUGH + k)
+            if wp.static(f.pass_through or f.alpha_blend or f.transmission):
                 mat = scene.materials[h.material]
                 if wp.static(f.pass_through):
                     passes = is_cut_out(scene, h, mat, hit_uv(scene, h))
@@ -103,11 +157,22 @@ def path_kernel(features):
                 if wp.static(f.alpha_blend):
                     if not passes and mat.alpha_blend == 1:
                         alpha = wp.clamp(alpha_at(scene, h, mat, hit_uv(scene, h)), 0.0, 1.0)
-                        passes = uniform(key, COVERAGE_DIMENSION + bounce * MAX_PASS_THROUGH + k) >= alpha
+                        passes = uniform(key, draw) >= alpha
+                if wp.static(f.transmission):
+                    if not passes and mat.transmission > 0.0:
+                        share = wall_share(scene, h, mat, d)
+                        p = wp.min(max_channel(share), MAX_PASSED)
+                        if p > 0.0:
+                            met = True
+                            if uniform(key, draw + 1) < p:
+                                passes = True
+                                weight = wp.cw_mul(weight, share / p)
+                            else:
+                                weight = weight / (1.0 - p)
             if not passes:
-                return True, h
+                return True, h, weight, met
             o = offset_ray_origin(h.p, h.p_error, h.ng, d)
-        return False, h
+        return False, h, weight, met
 
     @wp.func
     def emitter_pdf(scene: SceneData, lights: LightTable, h: SurfaceHit, from_point: wp.vec3, d: wp.vec3) -> float:
@@ -143,11 +208,12 @@ def path_kernel(features):
                 if max_channel(ls.irradiance) <= 0.0:
                     return wp.vec3(0.0)
                 origin, direction, max_t = shadow_segment(scene, i, h, ls)
-                if occluded(scene, origin, direction, max_t):
+                passed = transmittance(scene, origin, direction, max_t)
+                if max_channel(passed) <= 0.0:
                     return wp.vec3(0.0)
                 fr = brdf(n, v, ls.to_light, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t,
                           anisotropy, thin_film)
-                return wp.cw_mul(fr, ls.irradiance) * (wp.dot(n, ls.to_light) / pmf)
+                return wp.cw_mul(wp.cw_mul(fr, ls.irradiance), passed) * (wp.dot(n, ls.to_light) / pmf)
         if wp.static(f.emission):
             face = lights.face[i - lights.punctual]
             if face == h.face:
@@ -178,12 +244,13 @@ def path_kernel(features):
             if max_channel(le) <= 0.0:
                 return wp.vec3(0.0)
             origin, direction, max_t = segment_to_point(h, target, l)
-            if occluded(scene, origin, direction, max_t):
+            passed = transmittance(scene, origin, direction, max_t)
+            if max_channel(passed) <= 0.0:
                 return wp.vec3(0.0)
             fr = brdf(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
                       thin_film)
             weight = power_heuristic(pdf, pdf_brdf_direction(n, v, l, alpha, p_specular))
-            return wp.cw_mul(fr, le) * (wp.dot(n, l) * weight / pdf)
+            return wp.cw_mul(wp.cw_mul(fr, le), passed) * (wp.dot(n, l) * weight / pdf)
         return wp.vec3(0.0)
 
     @wp.func
@@ -230,11 +297,17 @@ def path_kernel(features):
                 previous_pdf = float(0.0)
                 previous_p = cam.eye
                 for bounce in range(max_bounces + 1):
-                    found, h = find_surface(scene, origin, d, bounce == 0, key, bounce)
+                    found, h, passed, met = find_surface(scene, origin, d, bounce == 0, key, bounce)
+                    throughput = wp.cw_mul(throughput, passed)
                     if not found:
                         if bounce == 0:
+                            if met:  # transmissive walls cover the pixel
+                                covered = covered + 1
                             if wp.static(f.environment_background):
-                                radiance = radiance + environment_radiance(env, d)
+                                radiance = radiance + wp.cw_mul(throughput, environment_radiance(env, d))
+                            else:
+                                if met:  # the background seen through them
+                                    radiance = radiance + wp.cw_mul(throughput, background)
                         else:
                             if wp.static(bool(f.environment)):
                                 # next-event estimation of the environment, once it is importance
@@ -271,6 +344,9 @@ def path_kernel(features):
                         break
                     v = -d
                     base = base_color_at(scene, h, mat, uv)
+                    if wp.static(f.transmission):
+                        # the diffuse lobe keeps what transmission leaves (KHR_materials_transmission)
+                        base = base * (1.0 - transmission_at(scene, mat, uv))
                     metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
                     aniso_t = wp.vec3(0.0)
                     anisotropy = float(0.0)

@@ -390,19 +390,33 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
                      "simulated (integrator='path' does)")] + decisions
 
 
-# What each extension the path tracer does not simulate yet is called, by its Features flag; the
-# flags of their textures and variants, dropped with them.
-PATH_UNSIMULATED = {"clearcoat": "clear coat (KHR_materials_clearcoat)", "sheen": "sheen (KHR_materials_sheen)",
-                    "transmission": "transmission (KHR_materials_transmission)",
-                    "volume": "volume (KHR_materials_volume)"}
-_PATH_DROPPED = ("clearcoat_textures", "sheen_textures", "transmission_texture", "rough_transmission",
-                 "transmissive_shadows")
+# The effects of the direct kernel the path tracer does not simulate yet, by Features flag: what
+# each is called, and what the path tracer renders instead. The flags of their textures and
+# variants are dropped with them.
+PATH_UNSIMULATED = {
+    "clearcoat": ("clear coat (KHR_materials_clearcoat)", "its materials get their base glTF BRDF"),
+    "sheen": ("sheen (KHR_materials_sheen)", "its materials get their base glTF BRDF"),
+    "volume": ("volume (KHR_materials_volume)", "its surfaces are thin walls: no refraction, no absorption"),
+    "rough_transmission": ("rough transmission (transmissive materials with roughness > 0)",
+                           "light passes them straight, unblurred"),
+}
+_PATH_DROPPED = ("clearcoat_textures", "sheen_textures", "transmissive_shadows")
 
 
-def path_unsimulated(decisions: list[Decision]) -> list[str]:
-    """The names (PATH_UNSIMULATED's) of the extensions ``decisions`` (the direct integrator's)
-    call for that the path tracer does not simulate."""
-    return [PATH_UNSIMULATED[d.name] for d in decisions if d.name in PATH_UNSIMULATED and d.present]
+def path_unsimulated(decisions: list[Decision], scene) -> list[str]:
+    """What the path tracer does not simulate yet of what ``decisions`` (the direct integrator's
+    for ``scene``) call for, each as "name (what is rendered instead)"."""
+    return [f"{PATH_UNSIMULATED[name][0]} ({PATH_UNSIMULATED[name][1]})" for name in _unsimulated(decisions, scene)]
+
+
+def _unsimulated(decisions: list[Decision], scene) -> list[str]:
+    """The PATH_UNSIMULATED flags ``scene`` calls for: those ``decisions`` hold, and rough
+    transmission wherever a transmissive material is rough (the direct integrator drops its blur
+    where misses show a background colour; the path tracer would need it anyway)."""
+    names = [d.name for d in decisions if d.name in PATH_UNSIMULATED and d.present and d.name != "rough_transmission"]
+    if any(p.material.transmissive and not p.material.unlit and p.material.roughness > 0.0 for p in scene.primitives):
+        names.append("rough_transmission")
+    return names
 
 
 def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int) -> list[Decision]:
@@ -429,6 +443,11 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
         "masked_occlusion": (bool(masked), f"shadow rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
                              else "no cut-outs in shadow rays: no alpha-masked material"),
     }
+    transmissive = sum(1 for p in scene.primitives if p.material.transmissive and not p.material.unlit)
+    if transmissive:
+        changed["transmission"] = (True, "paths and shadow rays pass straight through smooth thin transmissive walls, "
+                                         "paths with the probability of the share transmitted (KHR_materials_"
+                                         f"transmission: {_count(transmissive, 'material')})")
     if scene.environment is not None:
         changed["environment"] = (IBL(), f"environment ({scene.environment!r}): the radiance of rays that escape "
                                          "the scene (BSDF-sampled, at full weight: not yet importance-sampled)")
@@ -436,13 +455,15 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
                     f"times between surfaces (paths of up to {max_bounces + 1} segments), the BRDF's lobes sampled "
                     "by a mixture of cosine and GGX visible normals, Russian roulette after three bounces; "
                     "emissive materials are lights")]
+    unsimulated = _unsimulated(decisions, scene)
     for d in decisions:
         if d.name in changed:
             present, why = changed[d.name]
             out.append(Decision(d.name, present, why))
-        elif d.name in PATH_UNSIMULATED and d.present:
-            out.append(Decision(d.name, False, f"{PATH_UNSIMULATED[d.name]} not simulated by the path tracer yet: "
-                                "its materials get their base glTF BRDF, opaque (integrator='direct' renders it)"))
+        elif d.name in unsimulated:
+            name, instead = PATH_UNSIMULATED[d.name]
+            out.append(Decision(d.name, False, f"{name} not simulated by the path tracer yet: {instead} "
+                                "(integrator='direct' renders it)"))
         elif d.name in _PATH_DROPPED and d.present:
             out.append(Decision(d.name, False, f"no {d.name.replace('_', ' ')}: not simulated by the path tracer yet"))
         else:
@@ -453,13 +474,12 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
 def path_features(f: Features) -> Features:
     """``f`` with what the path tracer ignores set to one value, so that renders differing only
     there share a kernel: visibility is ray cast, every pixel supersampled, shadows traced, the
-    environment's IBL rungs unused, occlusion textures and the extensions it does not simulate
+    environment's IBL rungs unused, occlusion textures and the effects it does not simulate
     (PATH_UNSIMULATED) dropped."""
     return dataclasses.replace(
         f, integrator="path", visibility="raycast", supersampling=True, shadows="rays", occlusion_texture=False,
         environment=IBL() if f.environment else False, clearcoat=False, clearcoat_textures=False, sheen=False,
-        sheen_textures=False, transmission=False, transmission_texture=False, volume=False,
-        rough_transmission=False, transmissive_shadows=False)
+        sheen_textures=False, volume=False, rough_transmission=False, transmissive_shadows=False)
 
 
 def check_integrator(integrator) -> str:

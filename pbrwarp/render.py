@@ -192,9 +192,11 @@ def render(
       for the direct integrator's approximations. The path tracer traces its own shadow rays
       (``shadows`` must be True or "rays"), ray casts primary visibility, ignores ``ibl`` (BRDF
       rungs still apply), filters textures over one pixel's footprint at the first surface and
-      at full resolution after a bounce, and does not simulate clear coat, sheen, transmission or
-      volume yet: a scene with them is rendered with their base BRDF, opaque, with a warning
-      naming them. Each pixel's ``spp`` samples are paths through random points of the pixel.
+      at full resolution after a bounce. It passes light through smooth thin transmissive walls,
+      but does not simulate clear coat, sheen or volumes yet, and passes light straight through
+      rough transmissive surfaces: a scene with them is rendered without them, with a warning
+      naming them and what is rendered instead. Each pixel's ``spp`` samples are paths through
+      random points of the pixel.
     - ``max_bounces``: with ``integrator="path"``, the most times light is scattered between an
       emitter and the eye (default 7: paths of up to 8 segments; 0 shows emission and the
       background only, 1 is direct lighting), a whole number from 0 to 1024.
@@ -239,11 +241,10 @@ def render(
     if not specialize:
         features = Features.everything(spp, aovs, brdf, shadows, ibl, features.environment_background, texture_filter)
     if path:
-        unsimulated = path_unsimulated(decide(scene, gpu, **{**options, "integrator": "direct"}))
+        unsimulated = path_unsimulated(decide(scene, gpu, **{**options, "integrator": "direct"}), scene)
         if unsimulated:
-            warnings.warn(f"the path tracer does not simulate {', '.join(unsimulated)} yet: those materials are "
-                          "rendered with their base glTF BRDF, opaque (integrator='direct' renders them)",
-                          stacklevel=2)
+            warnings.warn(f"the path tracer does not simulate {'; '.join(unsimulated)} yet; integrator='direct' "
+                          "renders them", stacklevel=2)
         return _render_path(scene, gpu, path_features(features), camera, width, height, spp, first_sample, seed,
                             max_bounces, threads, background, progress)
     kernel = render_kernel(features)
