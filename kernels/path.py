@@ -10,8 +10,11 @@ reaches it adds
   triangle gets a point uniform on its area, weighted against BSDF sampling;
 then continues along a direction drawn from the BRDF's lobe mixture (kernels/bsdf_sampling.py),
 its throughput multiplied by f cos / pdf. A ray that escapes adds the environment's radiance
-(BSDF-sampled only, at full weight). After three bounces, Russian roulette continues a path
-with probability q = min(max throughput channel, 0.95), dividing its throughput by q. Every random number is a hash of (seed, pixel, sample, dimension) (kernels/random.py).
+(BSDF-sampled only, at full weight). Smooth thin transmissive walls are passed as null events,
+with the probability of the share they transmit (find_surface), and shadow rays pass them tinted
+by that share (transmittance). After three bounces, Russian roulette continues a path with
+probability q = min(max throughput channel, 0.95), dividing its throughput by q. Every random
+number is a hash of (seed, pixel, sample, dimension) (kernels/random.py).
 
 Built per feature set like the direct kernel, with only the lights, textures and material inputs
 a scene needs; which of the direct kernel's effects the path tracer ignores is pbrwarp.features'
