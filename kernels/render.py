@@ -8,7 +8,6 @@ import functools
 import warp as wp
 
 from .ambient import ambient_for
-from .anisotropy import anisotropy_direction
 from .brdf import albedo_coupled_brdf_for, brdf_for, fresnel_dielectric, max_channel
 from .ibl import EnvironmentData, environment_radiance, prefiltered_radiance
 from .camera import CameraData, camera_ray_direction
@@ -17,9 +16,9 @@ from .light_buffer import LightBuffers
 from .light_buffer_query import (OCCLUDED, SHADOW_CACHE_LIGHTS, UNDECIDED, ShadowCache, light_buffer_occlusion,
                                  ray_leaves_clear, segment_meets_triangle)
 from .lights import LightSample, light_sampler
-from .normal_mapping import perturb_normal
+from .material_inputs import material_lookups
 from .ray_triangle import ray_triangle_intersection
-from .robust import RAY_FAR, clamp_to_float32_max, SHADOW_RAY_SHORTENING, offset_ray_origin, safe_normalize
+from .robust import RAY_FAR, clamp_to_float32_max, offset_ray_origin, safe_normalize
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
@@ -28,7 +27,8 @@ from .transmission import (TRANSMISSION_STREAM, beer_lambert, blurred_roughness,
                            sample_rough_interface, sample_thin_lobe, transmission_blur, transmission_roughness,
                            transmitted_share)
 from .work_queue import read_counter, take_next_item_from
-from .surface import MAX_PASS_THROUGH, NEGLIGIBLE_THROUGHPUT, SurfaceHit, interpolate, surface_hit, surface_tests
+from .surface import (MAX_PASS_THROUGH, NEGLIGIBLE_THROUGHPUT, SurfaceHit, shadow_segment, surface_hit,
+                      surface_tests)
 from .texture_coords import SurfaceUV, texture_lookups
 from .visibility_buffer import visible_triangle
 
@@ -68,6 +68,10 @@ def render_kernel(features):
     # the pixel footprint (ray differentials) is computed only for trilinear filtering
     footprint = textured and f.texture_filter == "trilinear"
     hit_texcoords, texture = texture_lookups(textured, footprint, f.second_uv_set)
+    inputs = material_lookups(f, texture)
+    base_color_at, surface_inputs, roughness_at = inputs.base_color_at, inputs.surface_inputs, inputs.roughness_at
+    transmission_at, anisotropy_at, thin_film_at = inputs.transmission_at, inputs.anisotropy_at, inputs.thin_film_at
+    oriented_normal, shading_normal, emission_at = inputs.oriented_normal, inputs.shading_normal, inputs.emission_at
     coat_at, _, clearcoat_brdf, clearcoat_environment = clearcoat_for(
         f.brdf.distribution, f.brdf.geometry, f.brdf.fresnel, texture if f.clearcoat_textures else None)
     if f.sheen:  # (its albedo table is integrated on first use)
@@ -84,92 +88,6 @@ def render_kernel(features):
         ambient = ambient_for(ibl.method, ibl.fresnel, ibl.samples, ibl.shadowed, f.brdf.energy == "multiscatter",
                               f.brdf.coupling != "none" and f.diffuse and f.specular, brdf, occluded,
                               f.brdf.metallic_mix == "gltf", f.anisotropy, f.iridescence, ibl.environment_sampling)
-
-    @wp.func
-    def base_color_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV) -> wp.vec3:
-        """The material's base colour at the hit: its factor times vertex colour and texture."""
-        base = wp.vec3(mat.base_color[0], mat.base_color[1], mat.base_color[2])
-        if wp.static(f.vertex_colors):
-            vertex_color = interpolate(scene.colors, h)
-            base = wp.cw_mul(base, wp.vec3(vertex_color[0], vertex_color[1], vertex_color[2]))
-        if wp.static(f.base_color_texture):
-            bc = texture(scene, mat.base_color_texture, uv)
-            base = wp.cw_mul(base, wp.vec3(bc[0], bc[1], bc[2]))
-        return base
-
-    @wp.func
-    def anisotropy_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV, n: wp.vec3):
-        """(the unit anisotropy direction, the strength) of KHR_materials_anisotropy at the hit,
-        with ``n`` the shading normal; strength 0 where there is no tangent frame."""
-        strength = mat.anisotropy_strength
-        if strength <= 0.0:
-            return wp.vec3(0.0), 0.0
-        rotation = mat.anisotropy_rotation
-        direction = rotation
-        if wp.static(f.anisotropy_texture):
-            if mat.anisotropy_texture != NO_TEXTURE:
-                texel = texture(scene, mat.anisotropy_texture, uv)
-                d = wp.vec2(2.0 * texel[0] - 1.0, 2.0 * texel[1] - 1.0)
-                length = wp.length(d)
-                if length > 0.0:
-                    d = d / length
-                else:
-                    d = wp.vec2(1.0, 0.0)
-                direction = wp.vec2(rotation[0] * d[0] - rotation[1] * d[1], rotation[1] * d[0] + rotation[0] * d[1])
-                strength = strength * texel[2]
-        front = n
-        if h.back_face == 1:
-            front = -n
-        t = anisotropy_direction(front, interpolate(scene.tangents, h), direction)
-        if wp.dot(t, t) == 0.0:
-            strength = 0.0
-        return t, strength
-
-    @wp.func
-    def thin_film_at(scene: SceneData, mat: MaterialData, uv: SurfaceUV) -> wp.vec3:
-        """(strength, IOR, thickness in nm) of KHR_materials_iridescence's film at the hit."""
-        strength = mat.iridescence
-        thickness = mat.iridescence_thickness[1]
-        if wp.static(f.iridescence_texture):
-            if mat.iridescence_texture != NO_TEXTURE:
-                strength = strength * texture(scene, mat.iridescence_texture, uv)[0]
-            if mat.iridescence_thickness_texture != NO_TEXTURE:
-                g = texture(scene, mat.iridescence_thickness_texture, uv)[1]
-                thickness = wp.lerp(mat.iridescence_thickness[0], mat.iridescence_thickness[1], g)
-        return wp.vec3(strength, mat.iridescence_ior, thickness)
-
-    @wp.func
-    def surface_inputs(scene: SceneData, mat: MaterialData, uv: SurfaceUV):
-        """(metallic, roughness, specular, f0_dielectric) at the hit: the factors times their
-        textures."""
-        metallic = mat.metallic
-        roughness = mat.roughness
-        specular = mat.specular
-        f0_dielectric = mat.f0_dielectric
-        if wp.static(f.metallic_roughness_texture):
-            mr = texture(scene, mat.metallic_roughness_texture, uv)
-            roughness = roughness * mr[1]
-            metallic = metallic * mr[2]
-        if wp.static(f.specular_texture):
-            specular = specular * texture(scene, mat.specular_texture, uv)[3]
-        if wp.static(f.specular_color_texture):
-            sc = texture(scene, mat.specular_color_texture, uv)
-            f0_dielectric = wp.cw_mul(f0_dielectric, wp.vec3(sc[0], sc[1], sc[2]))
-        return metallic, roughness, specular, f0_dielectric
-
-    @wp.func
-    def roughness_at(scene: SceneData, mat: MaterialData, uv: SurfaceUV) -> float:
-        metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
-        return roughness
-
-    @wp.func
-    def transmission_at(scene: SceneData, mat: MaterialData, uv: SurfaceUV) -> float:
-        """KHR_materials_transmission's share at the hit: its factor times the texture's R."""
-        t = mat.transmission
-        if wp.static(f.transmission_texture):
-            if t > 0.0:
-                t = t * texture(scene, mat.transmission_texture, uv)[0]
-        return t
 
     @wp.func
     def transmitted(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV, n: wp.vec3, v: wp.vec3,
@@ -200,10 +118,7 @@ def render_kernel(features):
             coat = coat_at(scene, mat, uv, oriented_normal(scene, h, uv, coat_normal_map, mat.clearcoat_normal_scale),
                            view)
         if wp.static(f.emission):
-            radiance = mat.emissive
-            if wp.static(f.emissive_texture):
-                em = texture(scene, mat.emissive_texture, uv)
-                radiance = wp.cw_mul(radiance, wp.vec3(em[0], em[1], em[2]))
+            radiance = emission_at(scene, mat, uv)
         if wp.static(shaded):
             base = base_color_at(scene, h, mat, uv)
             metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
@@ -292,20 +207,6 @@ def render_kernel(features):
             scale_material = -1  # the next hit's inputs may differ
         return radiance, cache, scale, scale_material
 
-    @wp.func(inline=True)
-    def shadow_segment(scene: SceneData, light: int, h: SurfaceHit, ls: LightSample):
-        """(origin, direction, max_t) of the shadow ray from the hit to light ``light``: from the
-        offset origin at the light's position, stopping short of it, or along a directional
-        light."""
-        origin = offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light)
-        direction = ls.to_light
-        max_t = RAY_FAR
-        if ls.distance < RAY_FAR:
-            to_light = scene.lights[light].position - origin
-            direction = safe_normalize(to_light, ls.to_light)
-            max_t = wp.length(to_light) * (1.0 - SHADOW_RAY_SHORTENING)
-        return origin, direction, max_t
-
     @wp.func
     def light_passed(scene: SceneData, light: int, h: SurfaceHit, ls: LightSample) -> wp.vec3:
         """The share of light ``light`` that reaches the hit through the transmissive surfaces on
@@ -381,30 +282,6 @@ def render_kernel(features):
             if verdict == OCCLUDED and scene.materials[scene.face_material[blocker]].alpha_mask == 1:
                 return occluded(scene, origin, direction, max_t), -1
         return verdict == OCCLUDED, blocker
-
-    @wp.func
-    def oriented_normal(scene: SceneData, h: SurfaceHit, uv: SurfaceUV, normal_map: int, scale: float) -> wp.vec3:
-        """Interpolated normal, perturbed by texture ``normal_map`` (unless NO_TEXTURE) with
-        ``scale``, turned to the side the ray came from."""
-        front_ng = h.ng
-        if h.back_face == 1:
-            front_ng = -h.ng
-        n = safe_normalize(interpolate(scene.normals, h), front_ng)
-        if wp.static(f.normal_mapping or f.clearcoat_textures):
-            if normal_map != NO_TEXTURE:
-                texel = texture(scene, normal_map, uv)
-                n = perturb_normal(n, interpolate(scene.tangents, h), texel, scale)
-        if h.back_face == 1:
-            n = -n
-        return n
-
-    @wp.func
-    def shading_normal(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV) -> wp.vec3:
-        """The material's (normal-mapped) normal, turned to the side the ray came from."""
-        normal_map = NO_TEXTURE
-        if wp.static(f.normal_mapping):
-            normal_map = mat.normal_texture
-        return oriented_normal(scene, h, uv, normal_map, mat.normal_scale)
 
     @wp.func
     def primary_hit(scene: SceneData, seen: int, origin: wp.vec3, d: wp.vec3):

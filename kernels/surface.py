@@ -7,7 +7,8 @@ from typing import Any
 
 import warp as wp
 
-from .robust import offset_ray_origin, safe_normalize, triangle_hit_error
+from .lights import LightSample
+from .robust import RAY_FAR, SHADOW_RAY_SHORTENING, offset_ray_origin, safe_normalize, triangle_hit_error
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .textures import mip_lod, sample_texture, sample_texture_lod
 
@@ -88,6 +89,26 @@ def texture_at(scene: SceneData, index: int, uv: wp.vec2, duv_dx: wp.vec2, duv_d
         return wp.vec4(1.0)
     tex = scene.textures[index]
     return sample_texture_lod(tex, scene.texels, uv, mip_lod(tex, duv_dx, duv_dy))
+
+
+@wp.func
+def segment_to_point(h: SurfaceHit, target: wp.vec3, to_target: wp.vec3):
+    """(origin, direction, max_t) of the shadow ray from the hit towards the point ``target``
+    (``to_target`` the unit direction from the hit to it): from the hit's offset origin, stopping
+    short of the target, so that a surface through the target does not block it."""
+    origin = offset_ray_origin(h.p, h.p_error, h.ng, to_target)
+    to_point = target - origin
+    return origin, safe_normalize(to_point, to_target), wp.length(to_point) * (1.0 - SHADOW_RAY_SHORTENING)
+
+
+# inlined: a call would copy the scene's struct (~0.6 KB) per shadow ray
+@wp.func(inline=True)
+def shadow_segment(scene: SceneData, light: int, h: SurfaceHit, ls: LightSample):
+    """(origin, direction, max_t) of the shadow ray from the hit to light ``light``: towards the
+    light's position (segment_to_point), or along a directional light."""
+    if ls.distance < RAY_FAR:
+        return segment_to_point(h, scene.lights[light].position, ls.to_light)
+    return offset_ray_origin(h.p, h.p_error, h.ng, ls.to_light), ls.to_light, RAY_FAR
 
 
 @functools.cache

@@ -10,6 +10,7 @@
   with analytic normals and tangents.
 - :func:`demo_scene`: both of the above, lit and framed.
 - :func:`icosphere`, :func:`bunny`, :func:`mesh_scene`: meshes of known size for benchmarks.
+- :func:`cornell_box`: the measured Cornell box, lit by an emissive quad, for the path tracer.
 
 Conventions are pbrwarp's (glTF's): +Y up, UV (0, 0) at the top-left of the image, normal maps
 with +X right and +Y (green) *up* in the image, bitangent = cross(normal, tangent.xyz) * w.
@@ -25,7 +26,8 @@ import numpy as np
 import pbrwarp as pw
 
 __all__ = [
-    "ASSETS", "DEMO_BACKGROUND", "SAMPLES", "brick_textures", "bunny", "demo_scene", "height_to_normal_map",
+    "ASSETS", "CORNELL_GREEN", "CORNELL_LIGHT", "CORNELL_RED", "CORNELL_WHITE", "DEMO_BACKGROUND", "SAMPLES",
+    "brick_textures", "bunny", "cornell_box", "demo_scene", "height_to_normal_map",
     "icosphere", "mesh_scene", "normal_mapped_tile", "normal_mapped_torus", "sphere_grid",
 ]
 
@@ -289,6 +291,86 @@ def demo_scene() -> tuple[pw.Scene, pw.Camera]:
     scene.add_light(pw.PointLight(position=(14.0, -6.0, 9.0), intensity=120.0))
 
     camera = pw.Camera.look_at(eye=(2.9, 0.0, 30.0), target=(2.9, 0.0, 0.0), fov_y=36.0)
+    return scene, camera
+
+
+# ---------------------------------------------------------------------- Cornell box
+# The Cornell box as measured (Cornell University Program of Computer Graphics, "Cornell Box
+# Data"): corners in millimetres, x to the camera's left, y up, z away from the camera.
+_CORNELL_WALLS = {
+    "floor": [(552.8, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 559.2), (549.6, 0.0, 559.2)],
+    "back wall": [(549.6, 0.0, 559.2), (0.0, 0.0, 559.2), (0.0, 548.8, 559.2), (556.0, 548.8, 559.2)],
+    "right wall": [(0.0, 0.0, 559.2), (0.0, 0.0, 0.0), (0.0, 548.8, 0.0), (0.0, 548.8, 559.2)],
+    "left wall": [(552.8, 0.0, 0.0), (549.6, 0.0, 559.2), (556.0, 548.8, 559.2), (556.0, 548.8, 0.0)],
+}
+# the opening in the ceiling the light fills, x and z ranges at the ceiling's height
+_CORNELL_CEILING_Y, _CORNELL_CEILING_X, _CORNELL_CEILING_Z = 548.8, (0.0, 556.0), (0.0, 559.2)
+_CORNELL_LIGHT_X, _CORNELL_LIGHT_Z = (213.0, 343.0), (227.0, 332.0)
+_CORNELL_BLOCKS = {
+    "short block": [(130.0, 65.0), (82.0, 225.0), (240.0, 272.0), (290.0, 114.0), 165.0],
+    "tall block": [(423.0, 247.0), (265.0, 296.0), (314.0, 456.0), (472.0, 406.0), 330.0],
+}
+# Linear RGB reflectances of the measured white, red and green paints and the light's radiance
+# (cd/m^2), the RGB values renderers commonly use for the measured spectra (Mitsuba 3's
+# cornell_box(), for one).
+CORNELL_WHITE = (0.885809, 0.698859, 0.666422)
+CORNELL_RED = (0.570068, 0.0430135, 0.0443706)
+CORNELL_GREEN = (0.105421, 0.37798, 0.076425)
+CORNELL_LIGHT = (18.387, 13.9873, 6.75357)
+
+
+def _quads(corners: list) -> tuple[np.ndarray, np.ndarray]:
+    """(positions in metres, faces) of quads given as lists of 4 corners in millimetres."""
+    positions = np.array([c for quad in corners for c in quad], dtype=np.float64) / 1000.0
+    faces = np.array([[4 * i, 4 * i + 1, 4 * i + 2, 4 * i, 4 * i + 2, 4 * i + 3] for i in range(len(corners))])
+    return positions, faces.reshape(-1, 3)
+
+
+def _rectangle(x: tuple, z: tuple, y: float, down: bool) -> list:
+    """The corners of an axis-aligned rectangle at height y, wound to face down (-y) or up."""
+    corners = [(x[0], y, z[0]), (x[1], y, z[0]), (x[1], y, z[1]), (x[0], y, z[1])]
+    return corners if down else corners[::-1]
+
+
+def cornell_box() -> tuple[pw.Scene, pw.Camera]:
+    """``(scene, camera)``: the Cornell box, as measured at Cornell (their "Cornell Box Data"
+    page): a 0.556 x 0.549 x 0.559 m room with a white floor, ceiling and back wall, a red wall on
+    the left and a green one on the right, two white blocks (0.165 and 0.330 m tall), and a
+    0.130 x 0.105 m light in an opening of the ceiling. Every surface is Lambertian (metallic 0,
+    specular 0, double-sided), coloured as :data:`CORNELL_WHITE`, :data:`CORNELL_RED` and
+    :data:`CORNELL_GREEN`; the light is a quad of emissive material :data:`CORNELL_LIGHT`
+    (cd/m^2), facing down, and the scene has no other light, so only the path tracer
+    (``integrator="path"``) lights it. Units are metres, +Y up; the camera is the measured one,
+    at (0.278, 0.273, -0.800) looking along +Z with a vertical field of view of 39.31 degrees
+    (a 35 mm lens over a 25 mm square film), for a square image."""
+    def paint(colour, name):
+        return pw.Material(base_color=colour, metallic=0.0, specular=0.0, name=name)
+
+    white, red, green = paint(CORNELL_WHITE, "white"), paint(CORNELL_RED, "red"), paint(CORNELL_GREEN, "green")
+    scene = pw.Scene()
+
+    def add(name, corners, material):
+        positions, faces = _quads(corners)
+        scene.add_mesh(pw.Primitive(positions, faces, material, name=name))
+
+    for name, material in (("floor", white), ("back wall", white), ("left wall", red), ("right wall", green)):
+        add(name, [_CORNELL_WALLS[name]], material)
+    (x0, x1), (z0, z1) = _CORNELL_CEILING_X, _CORNELL_CEILING_Z
+    (lx0, lx1), (lz0, lz1) = _CORNELL_LIGHT_X, _CORNELL_LIGHT_Z
+    y = _CORNELL_CEILING_Y
+    ceiling = [_rectangle((x0, x1), (z0, lz0), y, True), _rectangle((x0, x1), (lz1, z1), y, True),
+               _rectangle((x0, lx0), (lz0, lz1), y, True), _rectangle((lx1, x1), (lz0, lz1), y, True)]
+    add("ceiling", ceiling, white)
+    for name, (*top, height) in _CORNELL_BLOCKS.items():
+        sides = [[(top[i][0], 0.0, top[i][1]), (top[i][0], height, top[i][1]),
+                  (top[(i + 1) % 4][0], height, top[(i + 1) % 4][1]), (top[(i + 1) % 4][0], 0.0, top[(i + 1) % 4][1])]
+                 for i in range(4)]
+        add(name, [[(x, height, z) for x, z in top]] + sides, white)
+    light = pw.Material(base_color=(0.78, 0.78, 0.78), metallic=0.0, specular=0.0, emissive=CORNELL_LIGHT,
+                        name="light")
+    add("light", [_rectangle((lx0, lx1), (lz0, lz1), y, True)], light)
+    fov = math.degrees(2.0 * math.atan(12.5 / 35.0))
+    camera = pw.Camera.look_at(eye=(0.278, 0.273, -0.800), target=(0.278, 0.273, 0.0), fov_y=fov)
     return scene, camera
 
 

@@ -25,7 +25,9 @@ import numpy as np
 
 from . import startup
 from .camera import Camera
+from .emitters import emissive_materials
 from .errors import InputError, PbrwarpError
+from .features import DEFAULT_MAX_BOUNCES, MAX_BOUNCES
 from .frame import MAX_EXPOSURE
 from .lights import DirectionalLight, PointLight, SpotLight
 from .parallel import MAX_THREADS_PER_CORE
@@ -117,6 +119,21 @@ def _positive_int(what: str):
             value = 0
         if value < 1:
             raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected a whole number >= 1")
+        return value
+
+    return parse
+
+
+def _whole_number(what: str, high: int):
+    """A parser of whole numbers from 0 to ``high``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = -1
+        if not 0 <= value <= high:
+            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected a whole number from 0 to {high}")
         return value
 
     return parse
@@ -262,6 +279,12 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--texture-filter", choices=("trilinear", "bilinear"), default="trilinear",
                        help="texture filtering: mip-mapped over each pixel's footprint (default), or the "
                             "full-resolution image only (faster, aliases)")
+        p.add_argument("--integrator", choices=("direct", "path"), default="direct",
+                       help="light transport: direct lighting (default), or path tracing (light bouncing between "
+                            "surfaces, emissive materials as lights; the ground truth, slower)")
+        p.add_argument("--bounces", type=_whole_number("bounces", MAX_BOUNCES), default=None, metavar="N",
+                       help=f"with --integrator path: the most bounces, 0 to {MAX_BOUNCES} (default "
+                            f"{DEFAULT_MAX_BOUNCES}: paths of up to {DEFAULT_MAX_BOUNCES + 1} segments)")
         p.add_argument("--env", metavar="HDR", default=None,
                        help="light the scene with an equirectangular .hdr/.exr environment, also shown as the "
                             "background unless --background is given (needs pip install 'pbrwarp[env]')")
@@ -357,7 +380,8 @@ def _render_and_save(scene, camera, args, background) -> None:
 
     width, height = args.size
     options = dict(width=width, height=height, spp=args.spp, shadows=args.shadows, quality=args.quality,
-                   visibility=args.visibility, background=background, texture_filter=args.texture_filter)
+                   visibility=args.visibility, background=background, texture_filter=args.texture_filter,
+                   integrator=args.integrator, max_bounces=args.bounces)
     if args.explain:
         print(explain(scene, **options))
     frame = render(scene, camera, threads=args.threads, **options)
@@ -373,7 +397,8 @@ def cmd_render(args) -> int:
     for light in args.light:
         scene.add_light(light)
     _load_environment(scene, args)
-    if not scene.lights and scene.environment is None:
+    lit_by_emitters = args.integrator == "path" and emissive_materials(scene) > 0
+    if not scene.lights and scene.environment is None and not lit_by_emitters:
         scene.add_light(_shoulder_light(camera))
         _note(f"note: the scene has no lights; added a {DEFAULT_KEY_LUX:g} lux directional light "
               "from over the camera's shoulder (use --light to choose your own)")

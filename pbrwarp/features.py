@@ -8,6 +8,7 @@ so changing them never recompiles.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -16,7 +17,8 @@ import numpy as np
 from .brdf import BRDF
 from .ibl import IBL
 from . import light_buffers, raster
-from .errors import InputError
+from .emitters import emissive_materials
+from .errors import InputError, InputTypeError
 from .shadow_maps import shadow_mode
 from .lights import DIRECTIONAL, POINT, SPOT
 
@@ -93,6 +95,8 @@ class Features:
     texture_filter: object = "trilinear"
     # textures read with a second uv set (glTF TEXCOORD_1)
     second_uv_set: bool = True
+    # the light transport: "direct" (kernels/render.py) or "path" (kernels/path.py)
+    integrator: str = "direct"
 
     @property
     def textures(self) -> bool:
@@ -150,6 +154,12 @@ def _count(n: int, noun: str) -> str:
     return f"{n} {noun}" + ("" if n == 1 else "es" if noun.endswith("sh") else "s")
 
 
+INTEGRATORS = ("direct", "path")
+# Path tracing's default bounces: paths of up to 8 segments, as Mitsuba's path integrator's
+# max_depth=8 (the Cornell-box speed target of issue 31 counts segments).
+DEFAULT_MAX_BOUNCES = 7
+# The most bounces a render may ask for.
+MAX_BOUNCES = 1024
 VISIBILITY_MODES = ("auto", "raycast", "raster")
 # visibility="auto" ray-casts rather than hold a visibility buffer (8 bytes a sample, plus the
 # sample positions' 8) larger than this: 1920 x 1080 at 16 spp needs 506 MiB, 3840 x 2160 at
@@ -189,9 +199,12 @@ def _path_words(path: str) -> str:
 
 def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "auto",
            samples: int = 480_000, ibl: IBL = IBL(), background_given: bool = False,
-           texture_filter: str = "trilinear") -> list[Decision]:
-    """Every effect with whether the render simulates it and why, in the order explain prints."""
+           texture_filter: str = "trilinear", integrator: str = "direct",
+           max_bounces: int = DEFAULT_MAX_BOUNCES) -> list[Decision]:
+    """Every effect with whether the render simulates it and why, in the order explain prints.
+    ``integrator`` "path" (with ``max_bounces``) decides for the path tracer (path_decisions)."""
     texture_filter = _texture_filter(texture_filter)
+    tracing_paths = check_integrator(integrator) == "path"
     prims = scene.primitives
     rows = gpu.material_rows
     mats = [p.material for p in prims]
@@ -215,7 +228,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
                               ("spot_lights", SPOT, "spot light")):
         add(name, count[kind], _count(count[kind], label) if count[kind] else f"no {label}s")
     lit_mats = [m for m in mats if not m.unlit]
-    if not scene.lights and scene.environment is None:
+    if not scene.lights and scene.environment is None and not (tracing_paths and emissive_materials(scene)):
         add("diffuse", False, "no lights: only emission and the background")
         add("specular", False, "no lights: no reflection")
     elif not lit_mats:
@@ -370,7 +383,112 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     add("pass_through", single, f"camera rays pass single-sided back faces and alpha cut-outs ({_count(single, 'material')})"
         if single else "no pass-through: every material is double-sided and opaque")
     add("aovs", aovs, "depth and normal outputs" if aovs else "no depth and normal outputs: aovs=False")
-    return decisions
+    if tracing_paths:
+        return path_decisions(decisions, scene, spp, max_bounces)
+    return [Decision("integrator", "direct", "direct lighting (integrator='direct'): the light of the lights and "
+                     "the environment reflected once towards the eye; light bouncing between surfaces is not "
+                     "simulated (integrator='path' does)")] + decisions
+
+
+# The effects of the direct kernel the path tracer does not simulate yet, by Features flag: what
+# each is called, and what the path tracer renders instead. The flags of their textures and
+# variants are dropped with them.
+PATH_UNSIMULATED = {
+    "clearcoat": ("clear coat (KHR_materials_clearcoat)", "its materials get their base glTF BRDF"),
+    "sheen": ("sheen (KHR_materials_sheen)", "its materials get their base glTF BRDF"),
+    "volume": ("volume (KHR_materials_volume)", "its surfaces are thin walls: no refraction, no absorption"),
+    "rough_transmission": ("rough transmission (transmissive materials with roughness > 0)",
+                           "light passes them straight, unblurred"),
+}
+_PATH_DROPPED = ("clearcoat_textures", "sheen_textures", "transmissive_shadows")
+
+
+def path_unsimulated(decisions: list[Decision], scene) -> list[str]:
+    """What the path tracer does not simulate yet of what ``decisions`` (the direct integrator's
+    for ``scene``) call for, each as "name (what is rendered instead)"."""
+    return [f"{PATH_UNSIMULATED[name][0]} ({PATH_UNSIMULATED[name][1]})" for name in _unsimulated(decisions, scene)]
+
+
+def _unsimulated(decisions: list[Decision], scene) -> list[str]:
+    """The PATH_UNSIMULATED flags ``scene`` calls for: those ``decisions`` hold, and rough
+    transmission wherever a transmissive material is rough (the direct integrator drops its blur
+    where misses show a background colour; the path tracer would need it anyway)."""
+    names = [d.name for d in decisions if d.name in PATH_UNSIMULATED and d.present and d.name != "rough_transmission"]
+    if any(p.material.transmissive and not p.material.unlit and p.material.roughness > 0.0 for p in scene.primitives):
+        names.append("rough_transmission")
+    return names
+
+
+def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int) -> list[Decision]:
+    """``decisions`` (the direct integrator's) turned into the path tracer's: what it traces
+    instead of the direct kernel's shadow and visibility techniques, and the extensions it does not
+    simulate yet, dropped (pbrwarp.render warns about them)."""
+    lights, emitting = len(scene.lights), emissive_materials(scene)
+    masked = sum(1 for p in scene.primitives if p.material.alpha_mode == "MASK")
+    sources = []
+    if lights:
+        sources.append(_count(lights, "punctual light"))
+    if emitting:
+        sources.append(f"the triangles of {_count(emitting, 'emissive mesh')}")
+    changed = {
+        "visibility": ("raycast", "primary visibility ray cast: each camera ray starts a path"),
+        "supersampling": (True, f"{_count(spp, 'path')} per pixel through random points of it (counter-based "
+                                "random numbers: the image does not depend on threads)"),
+        "occlusion_texture": (False, "no occlusion textures read: the path tracer traces the occlusion they stand "
+                                     "for"),
+        "shadows": ("rays", "next-event estimation at every path vertex: a shadow ray towards one light chosen by "
+                            f"power from {' and '.join(sources)} (punctual lights by light sampling alone, emissive "
+                            "triangles weighted against BSDF sampling by the power heuristic)")
+        if sources else (False, "no shadow rays: no lights and no emissive meshes to sample"),
+        "masked_occlusion": (bool(masked), f"shadow rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
+                             else "no cut-outs in shadow rays: no alpha-masked material"),
+    }
+    transmissive = sum(1 for p in scene.primitives if p.material.transmissive and not p.material.unlit)
+    if transmissive:
+        changed["transmission"] = (True, "paths and shadow rays pass straight through smooth thin transmissive walls, "
+                                         "paths with the probability of the share transmitted (KHR_materials_"
+                                         f"transmission: {_count(transmissive, 'material')})")
+    if scene.environment is not None:
+        changed["environment"] = (IBL(), f"environment ({scene.environment!r}): the radiance of rays that escape "
+                                         "the scene (BSDF-sampled, at full weight: not yet importance-sampled)")
+    out = [Decision("integrator", "path", f"path tracing (integrator='path'): light bouncing up to {max_bounces} "
+                    f"times between surfaces (paths of up to {max_bounces + 1} segments), the BRDF's lobes sampled "
+                    "by a mixture of cosine and GGX visible normals, Russian roulette after three bounces; "
+                    "emissive materials are lights")]
+    unsimulated = _unsimulated(decisions, scene)
+    for d in decisions:
+        if d.name in changed:
+            present, why = changed[d.name]
+            out.append(Decision(d.name, present, why))
+        elif d.name in unsimulated:
+            name, instead = PATH_UNSIMULATED[d.name]
+            out.append(Decision(d.name, False, f"{name} not simulated by the path tracer yet: {instead} "
+                                "(integrator='direct' renders it)"))
+        elif d.name in _PATH_DROPPED and d.present:
+            out.append(Decision(d.name, False, f"no {d.name.replace('_', ' ')}: not simulated by the path tracer yet"))
+        else:
+            out.append(d)
+    return out
+
+
+def path_features(f: Features) -> Features:
+    """``f`` with what the path tracer ignores set to one value, so that renders differing only
+    there share a kernel: visibility is ray cast, every pixel supersampled, shadows traced, the
+    environment's IBL rungs unused, occlusion textures and the effects it does not simulate
+    (PATH_UNSIMULATED) dropped."""
+    return dataclasses.replace(
+        f, integrator="path", visibility="raycast", supersampling=True, shadows="rays", occlusion_texture=False,
+        environment=IBL() if f.environment else False, clearcoat=False, clearcoat_textures=False, sheen=False,
+        sheen_textures=False, volume=False, rough_transmission=False, transmissive_shadows=False)
+
+
+def check_integrator(integrator) -> str:
+    """``integrator`` if it names one of INTEGRATORS; InputTypeError or InputError otherwise."""
+    if not isinstance(integrator, str):
+        raise InputTypeError(f"integrator must be 'direct' or 'path', got {integrator!r}")
+    if integrator not in INTEGRATORS:
+        raise InputError(f"integrator must be one of {', '.join(map(repr, INTEGRATORS))}, got {integrator!r}")
+    return integrator
 
 
 def _texture_decisions(prims, decisions, texture_filter: str) -> list[Decision]:

@@ -8,6 +8,7 @@ import functools
 import inspect
 import math
 import threading
+import warnings
 
 import numpy as np
 import warp as wp
@@ -15,8 +16,10 @@ import warp as wp
 from . import huge_pages, validate
 from .brdf import BRDF, brdf_for_quality
 from .camera import Camera
-from .errors import InputTypeError
-from .features import Features, decide, describe, scene_features
+from .errors import InputError, InputTypeError
+from .emitters import light_table
+from .features import (DEFAULT_MAX_BOUNCES, MAX_BOUNCES, Features, check_integrator, decide, describe, path_features, path_unsimulated,
+                       scene_features)
 from .frame import Frame
 from .gpu_scene import back_face_culling, upload
 from .ibl import IBL, ibl_for_quality
@@ -29,6 +32,7 @@ from pbrwarp.kernels.camera import CameraData
 from pbrwarp.kernels.loading import load_for_cpu
 from pbrwarp.kernels.dfg import dfg_table
 from pbrwarp.kernels.ibl import EnvironmentData
+from pbrwarp.kernels.path import path_kernel
 from pbrwarp.kernels.render import ROWS_TAKEN, STOP, WORK_SLOTS, render_kernel
 
 # One launch per thread, each taking ROWS_PER_TAKE rows at a time from one shared counter until
@@ -138,6 +142,9 @@ def render(
     visibility: str = "auto",
     ibl: IBL | None = None,
     texture_filter: str = "trilinear",
+    integrator: str = "direct",
+    max_bounces: int | None = None,
+    first_sample: int = 0,
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
@@ -178,6 +185,26 @@ def render(
       footprint on the surface (ray differentials of one pixel, or of one of ``spp`` strata), from
       the texture's mip levels; "bilinear" reads the full-resolution image only (cheaper; textures
       finer than the pixels alias). docs/materials.md says how.
+    - ``integrator``: "direct" (the default) shades the first surface each camera sample meets
+      with the light of the lights and the environment, reflected once; "path" traces paths
+      through the scene (docs/integrators.md): light bouncing between surfaces, emissive
+      materials as lights, next-event estimation with multiple importance sampling, ground truth
+      for the direct integrator's approximations. The path tracer traces its own shadow rays
+      (``shadows`` must be True or "rays"), ray casts primary visibility, ignores ``ibl`` (BRDF
+      rungs still apply), filters textures over one pixel's footprint at the first surface and
+      at full resolution after a bounce. It passes light through smooth thin transmissive walls,
+      but does not simulate clear coat, sheen or volumes yet, and passes light straight through
+      rough transmissive surfaces: a scene with them is rendered without them, with a warning
+      naming them and what is rendered instead. Each pixel's ``spp`` samples are paths through
+      random points of the pixel.
+    - ``max_bounces``: with ``integrator="path"``, the most times light is scattered between an
+      emitter and the eye (default 7: paths of up to 8 segments; 0 shows emission and the
+      background only, 1 is direct lighting), a whole number from 0 to 1024.
+    - ``first_sample``: with ``integrator="path"``, the index of the first sample per pixel
+      (default 0). Sample s of a pixel depends on ``seed``, the pixel and s alone (counter-based
+      random numbers), so a render of samples [a, b) continues one of [0, a): (a * frame_0_a.rgb
+      + (b - a) * frame_a_b.rgb) / b is the render of ``spp=b``, up to rounding, for the same
+      ``seed`` and options; renders with different seeds are independent.
 
     Raises InputTypeError for a scene, camera or option of the wrong type, InputError for a value
     out of range, a scene without meshes or a frame past a limit (before anything is allocated),
@@ -202,14 +229,24 @@ def render(
     elif not isinstance(camera, Camera):
         raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
 
+    path, max_bounces, first_sample = _path_options(integrator, max_bounces, first_sample, spp, shadows)
+
     ibl = ibl_for_quality(quality, ibl)
     brdf = brdf_for_quality(quality, brdf)
     gpu = upload(scene)
     options = dict(shadows=shadows, spp=spp, aovs=aovs, brdf=brdf, visibility=visibility, samples=width * height * spp,
-                   ibl=ibl, background_given=background_given, texture_filter=texture_filter)
+                   ibl=ibl, background_given=background_given, texture_filter=texture_filter, integrator=integrator,
+                   max_bounces=max_bounces)
     features = scene_features(scene, gpu, **options)
     if not specialize:
         features = Features.everything(spp, aovs, brdf, shadows, ibl, features.environment_background, texture_filter)
+    if path:
+        unsimulated = path_unsimulated(decide(scene, gpu, **{**options, "integrator": "direct"}), scene)
+        if unsimulated:
+            warnings.warn(f"the path tracer does not simulate {'; '.join(unsimulated)} yet; integrator='direct' "
+                          "renders them", stacklevel=2)
+        return _render_path(scene, gpu, path_features(features), camera, width, height, spp, first_sample, seed,
+                            max_bounces, threads, background, progress)
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
@@ -252,9 +289,69 @@ def render(
     )
 
 
+def _path_options(integrator, max_bounces, first_sample, spp: int, shadows):
+    """(whether the path tracer renders, max_bounces, first_sample), checked: the last two apply
+    to integrator="path" only, as do its shadows (traced)."""
+    path = check_integrator(integrator) == "path"
+    if not path:
+        if max_bounces is not None:
+            raise InputError("max_bounces applies to integrator='path'; the direct integrator reflects light once")
+        if not (isinstance(first_sample, (int, np.integer)) and not isinstance(first_sample, bool)
+                and first_sample == 0):
+            raise InputError(f"first_sample applies to integrator='path' (got {first_sample!r}); the direct "
+                             "integrator's samples are stratified per render: use seed= for independent renders")
+        return False, None, 0
+    if max_bounces is None:
+        max_bounces = DEFAULT_MAX_BOUNCES
+    for name, value, high in (("max_bounces", max_bounces, MAX_BOUNCES), ("first_sample", first_sample, None)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise InputTypeError(f"{name} must be a whole number, got {value!r}")
+        if value < 0 or (high is not None and value > high):
+            raise InputError(f"{name} must be a whole number from 0 to {high if high is not None else 2**31 - 1 - spp}"
+                             f", got {value}")
+    if first_sample + spp > 2**31 - 1:
+        raise InputError(f"first_sample + spp must be below 2^31, got {first_sample} + {spp}")
+    mode, _ = shadow_mode(shadows)
+    if mode != "rays":
+        raise InputError(f"the path tracer traces its own shadow rays: shadows must be True or 'rays' with "
+                         f"integrator='path', got {shadows!r}")
+    return True, int(max_bounces), int(first_sample)
+
+
+def _render_path(scene: Scene, gpu, features: Features, camera: Camera, width: int, height: int, spp: int,
+                 first_sample: int, seed, max_bounces: int, threads, background, progress) -> Frame:
+    """render(..., integrator="path") once its options are checked and its features decided."""
+    kernel = path_kernel(features)
+    cam = _camera_data(camera, width, height)
+    out_rgb = huge_pages.empty((height, width), wp.vec3)
+    out_alpha = huge_pages.empty((height, width), float)
+    aov_shape = (height, width) if features.aovs else (1, 1)
+    out_depth = huge_pages.empty(aov_shape, float)
+    out_normal = huge_pages.empty(aov_shape, wp.vec3)
+    env = _environment_arguments(scene, threads)[0] if features.environment else _no_environment()[0]
+    lights = light_table(scene, gpu)
+    rows_taken = wp.zeros(WORK_SLOTS, dtype=wp.int32, device="cpu")
+    inputs = [gpu.data, cam, spp, first_sample, int(seed) % (2**31), max_bounces, rows_taken, ROWS_PER_TAKE,
+              wp.vec3(*background), out_rgb, out_alpha, out_depth, out_normal, env, lights]
+
+    def launch(_):
+        wp.launch(kernel, dim=1, device="cpu", inputs=inputs)
+
+    load_for_cpu(kernel)  # compiled or loaded once, before many threads would all try at once
+    _run_with_progress(launch, thread_count(threads), rows_taken, height, progress)
+    return Frame(
+        rgb=out_rgb.numpy().reshape(height, width, 3),
+        depth=out_depth.numpy() if features.aovs else None,
+        normal=out_normal.numpy().reshape(height, width, 3) if features.aovs else None,
+        alpha=out_alpha.numpy(),
+        background=background,
+    )
+
+
 def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
             brdf: BRDF | None = None, visibility: str = "auto", width: int = 800, height: int = 600,
-            ibl: IBL | None = None, background=None, texture_filter: str = "trilinear", **_render_options) -> str:
+            ibl: IBL | None = None, background=None, texture_filter: str = "trilinear", integrator: str = "direct",
+            max_bounces: int | None = None, **_render_options) -> str:
     """The text saying which effects :func:`render` with these options simulates for ``scene``,
     and why each absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow
     itself ..."), with the estimated cost of each primary visibility path, and, last, what the
@@ -271,7 +368,9 @@ def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality
                                               rasterized=bool(_render_options.get("specialize", True))
                                               and visibility != "raycast")
     samples = width * height * spp
+    _, bounces, _ = _path_options(integrator, max_bounces, _render_options.get("first_sample", 0), spp, shadows)
     return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf),
                            visibility=visibility, samples=samples, ibl=ibl_for_quality(quality, ibl),
-                           background_given=background is not None, texture_filter=texture_filter),
+                           background_given=background is not None, texture_filter=texture_filter,
+                           integrator=integrator, max_bounces=DEFAULT_MAX_BOUNCES if bounces is None else bounces),
                     scene.load_warnings)

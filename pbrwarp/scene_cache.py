@@ -27,6 +27,8 @@ slot                                  value (built by)                  key
 "shadow maps"                         the lights' depth maps            the geometry, the lights' placement,
                                       (shadow_maps.build)               the ShadowMap settings, the alpha
                                                                         cut-outs
+"emitters"                            the path tracer's light table     the uploaded scene ("rows"), by
+                                      (emitters.light_table)            identity
 (fact, primitive), fact one of        a primitive's bounds, whether it  the primitive's revision
 "bounds", "closed volume", "convex",  is a closed volume, or convex,
 "hull points"                         its convex hull's vertices
@@ -58,7 +60,7 @@ while building one. Building a slot holds that slot's own build lock: a thread t
 another thread is building waits for it and takes its result, it never builds it again; different
 slots, and different scenes' slots, build at the same time. A build may look up other slots but
 never its own, and only downwards in this order, so no two threads can wait for each other:
-rows, geometry, texels; light buffers and shadow maps; face flags and longest edges; facts; the
+rows, geometry, texels; emitters, light buffers and shadow maps; face flags and longest edges; facts; the
 process-wide slots. A stored value is never changed: a render keeps using what it looked up,
 whatever another thread stores meanwhile, and an improvement is a copy swapped in.
 """
@@ -70,7 +72,7 @@ import threading
 import weakref
 
 # The slots derived from the geometry, dropped with it.
-GEOMETRY_DERIVED = ("rows", "face flags", "longest edges", "light buffers", "shadow maps")
+GEOMETRY_DERIVED = ("rows", "face flags", "longest edges", "light buffers", "shadow maps", "emitters")
 # The per-primitive facts' slot names: (fact, primitive).
 PRIMITIVE_FACTS = ("bounds", "closed volume", "convex", "hull points")
 
