@@ -8,6 +8,9 @@ import functools
 import warp as wp
 
 from .ambient import ambient_for
+from .area_lights import (AREA_LIGHT_STREAM, AREA_RECT, AreaLightData, rect_irradiance,
+                          rect_representative_point, representative_point_normalization, robust_length,
+                          sample_rect_light, sample_sphere_light, sphere_irradiance, sphere_representative_point)
 from .brdf import albedo_coupled_brdf_for, brdf_for, fresnel_dielectric, max_channel
 from .ibl import EnvironmentData, environment_radiance, prefiltered_radiance
 from .camera import CameraData, camera_ray_direction
@@ -17,8 +20,9 @@ from .light_buffer_query import (OCCLUDED, SHADOW_CACHE_LIGHTS, UNDECIDED, Shado
                                  ray_leaves_clear, segment_meets_triangle)
 from .lights import LightSample, light_sampler
 from .material_inputs import material_lookups
+from .microfacet import PI, alpha_from_roughness
 from .ray_triangle import ray_triangle_intersection
-from .robust import RAY_FAR, clamp_to_float32_max, offset_ray_origin, safe_normalize
+from .robust import RAY_FAR, SHADOW_RAY_SHORTENING, clamp_to_float32_max, offset_ray_origin, safe_normalize
 from .sampling import multi_jittered_sample
 from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
 from .shadow_map import ShadowMaps, shadow_map_visibility
@@ -60,7 +64,17 @@ def render_kernel(features):
                                                 or f.vertex_colors or f.specular_texture
                                                 or f.specular_color_texture or f.transmission_texture)
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
-    lit = f.point_lights or f.directional_lights or f.spot_lights
+    # area lights, and their rung: "representative_point" or "monte_carlo" (pbrwarp.AreaLighting)
+    area = (f.sphere_lights or f.rect_lights) and bool(f.area_lighting)
+    area_rung = f.area_lighting.method if area else None
+    if area_rung == "representative_point" and f.specular:
+        # the specular lobe alone, shaded from the representative point
+        specular_brdf = brdf_for(False, True, **dataclasses.asdict(f.brdf), **layers)
+    area_samples = f.area_lighting.samples if area_rung == "monte_carlo" else 1
+    # the samples' stratification grid, m x n = area_samples with m the largest divisor <= sqrt
+    area_grid_m = max(d for d in range(1, int(area_samples ** 0.5) + 1) if area_samples % d == 0)
+    area_grid_n = area_samples // area_grid_m
+    lit = f.point_lights or f.directional_lights or f.spot_lights or area
     ibl = f.environment
     shaded = lit or bool(ibl)
     hit_uv, alpha_at, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture,
@@ -96,6 +110,170 @@ def render_kernel(features):
         metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
         return transmitted_share(base_color_at(scene, h, mat, uv), metallic, t, specular, f0_dielectric,
                                  wp.max(wp.dot(n, v), 0.0))
+
+    @wp.func
+    def layered_reflectance(n: wp.vec3, view: wp.vec3, l: wp.vec3, base: wp.vec3, metallic: float, roughness: float,
+                            specular: float, eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, scale: wp.vec3,
+                            aniso_t: wp.vec3, anisotropy: float, thin_film: wp.vec3) -> wp.vec3:
+        """The BRDF towards l, below the sheen and the clear coat (``scale``, the albedo
+        coupling's normalization, is read only where the BRDF couples its lobes so)."""
+        if wp.static(bool(coupled)):
+            return brdf_scaled(n, view, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, scale,
+                               aniso_t, anisotropy, thin_film)
+        return brdf(n, view, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
+                    thin_film)
+
+    @wp.func
+    def reflectance(n: wp.vec3, view: wp.vec3, l: wp.vec3, base: wp.vec3, metallic: float, roughness: float,
+                    specular: float, eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, scale: wp.vec3,
+                    aniso_t: wp.vec3, anisotropy: float, thin_film: wp.vec3, sheen: Sheen) -> wp.vec3:
+        """The BRDF towards l with the sheen layer's albedo scaling and lobe: what punctual and
+        area lights reflect alike."""
+        fr = layered_reflectance(n, view, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, scale,
+                                 aniso_t, anisotropy, thin_film)
+        if wp.static(f.sheen):  # KHR_materials_sheen's albedo scaling
+            fr = fr * sheen_scaling(sheen, l) + sheen_brdf(sheen, view, l)
+        return fr
+
+    @wp.func
+    def area_light_visibility(scene: SceneData, h: SurfaceHit, direction: wp.vec3, distance: float) -> wp.vec3:
+        """The share of an area light's radiance that reaches the hit from ``distance`` along
+        ``direction``: 1, 0 where a surface blocks it, or what transmissive blockers pass. Traced
+        through the BVH: light buffers and shadow maps hold punctual lights only."""
+        if wp.static(not f.area_shadows):
+            return wp.vec3(1.0)
+        origin = offset_ray_origin(h.p, h.p_error, h.ng, direction)
+        reach = distance * (1.0 - SHADOW_RAY_SHORTENING)
+        if not occluded(scene, origin, direction, reach):
+            return wp.vec3(1.0)
+        if wp.static(f.transmissive_shadows):
+            return light_passed(scene, origin, direction, reach)
+        return wp.vec3(0.0)
+
+    @wp.func
+    def sample_area_light(light: AreaLightData, p: wp.vec3, u: wp.vec2):
+        """(direction, distance, solid-angle pdf) of a point of the light, by its kind."""
+        # static branches: the code of an absent kind is not generated
+        if wp.static(f.sphere_lights and f.rect_lights):
+            if light.kind == AREA_RECT:
+                return sample_rect_light(light, p, u)
+            return sample_sphere_light(light, p, u)
+        elif wp.static(f.sphere_lights):
+            return sample_sphere_light(light, p, u)
+        else:
+            return sample_rect_light(light, p, u)
+
+    @wp.func
+    def sphere_shape(light: AreaLightData, p: wp.vec3, n: wp.vec3, r: wp.vec3, centre_distance: float):
+        """area_light_shape of a sphere light: its size is its radius, and a shadow
+        ray towards its centre ends at its surface."""
+        mean, projected, facing = sphere_irradiance(light, p, n)
+        return (mean, projected, facing, sphere_representative_point(light, p, r), light.radius,
+                centre_distance - light.radius)
+
+    @wp.func
+    def rect_shape(light: AreaLightData, p: wp.vec3, n: wp.vec3, r: wp.vec3, centre_distance: float):
+        """area_light_shape of a rectangle light: its size is the radius of the disc
+        of its area."""
+        mean, projected, facing = rect_irradiance(light, p, n)
+        return (mean, projected, facing, rect_representative_point(light, p, r), wp.sqrt(light.area / PI),
+                centre_distance)
+
+    @wp.func
+    def area_light_shape(light: AreaLightData, p: wp.vec3, n: wp.vec3, r: wp.vec3, centre_distance: float):
+        """(mean direction, projected solid angle, facing projected solid angle, the
+        representative point relative to p, the light's size for Karis's normalization, the
+        distance a shadow ray to the centre must reach) of a light, by its kind."""
+        if wp.static(f.sphere_lights and f.rect_lights):
+            if light.kind == AREA_RECT:
+                return rect_shape(light, p, n, r, centre_distance)
+            return sphere_shape(light, p, n, r, centre_distance)
+        elif wp.static(f.sphere_lights):
+            return sphere_shape(light, p, n, r, centre_distance)
+        else:
+            return rect_shape(light, p, n, r, centre_distance)
+
+    @wp.func
+    def area_light_sampled(scene: SceneData, light: AreaLightData, h: SurfaceHit, n: wp.vec3, view: wp.vec3,
+                           base: wp.vec3, metallic: float, roughness: float, specular: float, eta: wp.vec3,
+                           kappa: wp.vec3, f0_dielectric: wp.vec3, scale: wp.vec3, aniso_t: wp.vec3,
+                           anisotropy: float, thin_film: wp.vec3, sheen: Sheen, coat: Coat, light_seed: int):
+        """(reflected, reflected by the clear coat) per unit of the light's radiance, the exact
+        rung: the Monte Carlo estimate of the integral of f cos over the light, from area_samples
+        points drawn by solid angle (multi-jittered), each checked by a shadow ray."""
+        total = wp.vec3(0.0)
+        coat_total = wp.vec3(0.0)
+        for k in range(area_samples):
+            u = multi_jittered_sample(k, area_grid_m, area_grid_n, light_seed)
+            direction, distance, pdf = sample_area_light(light, h.p, u)
+            if pdf <= 0.0:
+                continue
+            # light below the geometric surface: shading normals must not leak it through
+            if wp.dot(h.ng, direction) <= 0.0:
+                continue
+            n_dot_l = wp.dot(n, direction)
+            if n_dot_l <= 0.0:
+                continue
+            passed = area_light_visibility(scene, h, direction, distance)
+            if max_channel(passed) <= 0.0:
+                continue
+            fr = reflectance(n, view, direction, base, metallic, roughness, specular, eta, kappa, f0_dielectric,
+                             scale, aniso_t, anisotropy, thin_film, sheen)
+            total = total + wp.cw_mul(fr, passed) * (n_dot_l / pdf)
+            if wp.static(f.clearcoat):
+                coat_total = coat_total + passed * (clearcoat_brdf(coat, view, direction)
+                                                    * wp.dot(coat.normal, direction) / pdf)
+        inv = 1.0 / float(area_samples)
+        return total * inv, coat_total * inv
+
+    @wp.func
+    def area_light_representative(scene: SceneData, light: AreaLightData, h: SurfaceHit, n: wp.vec3,
+                                  view: wp.vec3, base: wp.vec3, metallic: float, roughness: float, specular: float,
+                                  eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, scale: wp.vec3,
+                                  aniso_t: wp.vec3, anisotropy: float, thin_film: wp.vec3, sheen: Sheen,
+                                  coat: Coat):
+        """(reflected, reflected by the clear coat) per unit of the light's radiance, the cheap rung
+        (Karis 2013): the diffuse lobe lit by the light's exact unoccluded irradiance from its mean
+        direction, the specular lobe by the light as a point where the reflection ray passes
+        closest to it, with the irradiance of a surface facing the light and the lobe's energy
+        normalization for the light's angular size; the sheen and the clear coat from the mean
+        direction. Shadowed as a whole by one ray to the light's centre."""
+        r = 2.0 * wp.dot(n, view) * n - view  # the mirror direction
+        to_centre = light.position - h.p
+        centre_distance = robust_length(to_centre)
+        mean, projected, facing, to_point, size, reach = area_light_shape(light, h.p, n, r, centre_distance)
+        # nothing where the light is all below the geometric surface (shading normals must not
+        # leak it through): its bounding sphere (the rectangle's half diagonal) under the plane
+        extent = light.radius + 0.5 * wp.length(light.edge_u + light.edge_v)
+        if facing <= 0.0 or wp.dot(h.ng, to_centre) + extent <= 0.0:
+            return wp.vec3(0.0), wp.vec3(0.0)
+        passed = area_light_visibility(scene, h, to_centre / centre_distance, reach)
+        if max_channel(passed) <= 0.0:
+            return wp.vec3(0.0), wp.vec3(0.0)
+        fr = layered_reflectance(n, view, mean, base, metallic, roughness, specular, eta, kappa, f0_dielectric, scale,
+                                 aniso_t, anisotropy, thin_film)
+        reflected = fr * projected
+        if wp.static(f.specular):
+            # the specular lobe moves from the mean direction to the representative point
+            glossy = specular_brdf(n, view, mean, base, metallic, roughness, specular, eta, kappa, f0_dielectric,
+                                   aniso_t, anisotropy, thin_film)
+            reflected = wp.max(fr - glossy, wp.vec3(0.0)) * projected
+            point_distance = robust_length(to_point)
+            if point_distance > 0.0:
+                l = to_point / point_distance
+                if wp.dot(h.ng, l) > 0.0:
+                    normalization = representative_point_normalization(alpha_from_roughness(roughness), size,
+                                                                       centre_distance)
+                    reflected = reflected + specular_brdf(n, view, l, base, metallic, roughness, specular, eta, kappa,
+                                              f0_dielectric, aniso_t, anisotropy, thin_film) * (
+                        facing * wp.max(wp.dot(n, l), 0.0) * normalization)
+        if wp.static(f.sheen):
+            reflected = reflected * sheen_scaling(sheen, mean) + sheen_brdf(sheen, view, mean) * projected
+        coat_reflected = wp.vec3(0.0)
+        if wp.static(f.clearcoat):
+            coat_reflected = passed * (clearcoat_brdf(coat, view, mean) * wp.max(wp.dot(coat.normal, mean), 0.0)
+                                       * facing)
+        return wp.cw_mul(reflected, passed), coat_reflected
 
     @wp.func
     def shade(scene: SceneData, maps: ShadowMaps, buffers: LightBuffers, env: EnvironmentData,
@@ -158,7 +336,8 @@ def render_kernel(features):
                     if blocked:
                         if wp.static(f.transmissive_shadows):
                             # a transmissive blocker tints the light rather than stopping it
-                            passed = light_passed(scene, i, h, ls)
+                            origin, direction, reach = shadow_segment(scene, i, h, ls)
+                            passed = light_passed(scene, origin, direction, reach)
                             if max_channel(passed) <= 0.0:
                                 continue
                             irradiance = wp.cw_mul(irradiance, passed)
@@ -168,22 +347,38 @@ def render_kernel(features):
                     unshadowed = shadow_map_visibility(maps, i, scene.lights[i].position, h.p, h.ng)
                     if unshadowed == 0.0:
                         continue
-                fr = wp.vec3(0.0)
                 if wp.static(bool(coupled)):
                     if scale_material != h.material:
                         scale = diffuse_share_scale(base, metallic, roughness, specular, f0_dielectric)
                         scale_material = h.material
-                    fr = brdf_scaled(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
-                                     mat.ior_kappa, f0_dielectric, scale, aniso_t, anisotropy, thin_film)
-                else:
-                    fr = brdf(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta,
-                              mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film)
-                if wp.static(f.sheen):  # KHR_materials_sheen's albedo scaling
-                    fr = fr * sheen_scaling(sheen, ls.to_light) + sheen_brdf(sheen, view, ls.to_light)
+                fr = reflectance(n, view, ls.to_light, base, metallic, roughness, specular, mat.ior_eta, mat.ior_kappa,
+                                 f0_dielectric, scale, aniso_t, anisotropy, thin_film, sheen)
                 radiance = radiance + wp.cw_mul(fr, irradiance) * (n_dot_l * unshadowed)
                 if wp.static(f.clearcoat):
                     coat_radiance = coat_radiance + irradiance * (clearcoat_brdf(coat, view, ls.to_light)
                                                                      * wp.dot(coat.normal, ls.to_light) * unshadowed)
+            if wp.static(area):
+                if wp.static(bool(coupled)):
+                    if scene.num_area_lights > 0 and scale_material != h.material:
+                        scale = diffuse_share_scale(base, metallic, roughness, specular, f0_dielectric)
+                        scale_material = h.material
+                # one random stream per camera sample, a seed per light drawn from it
+                area_state = wp.rand_init(seed, AREA_LIGHT_STREAM + stream)
+                for i in range(scene.num_area_lights):
+                    light = scene.area_lights[i]
+                    reflected = wp.vec3(0.0)
+                    coat_reflected = wp.vec3(0.0)
+                    if wp.static(area_rung == "monte_carlo"):
+                        reflected, coat_reflected = area_light_sampled(
+                            scene, light, h, n, view, base, metallic, roughness, specular, mat.ior_eta, mat.ior_kappa,
+                            f0_dielectric, scale, aniso_t, anisotropy, thin_film, sheen, coat, wp.randi(area_state))
+                    else:
+                        reflected, coat_reflected = area_light_representative(
+                            scene, light, h, n, view, base, metallic, roughness, specular, mat.ior_eta, mat.ior_kappa,
+                            f0_dielectric, scale, aniso_t, anisotropy, thin_film, sheen, coat)
+                    radiance = radiance + wp.cw_mul(reflected, light.radiance)
+                    if wp.static(f.clearcoat):
+                        coat_radiance = coat_radiance + wp.cw_mul(coat_reflected, light.radiance)
             if wp.static(bool(ibl)):
                 from_environment = ambient(scene, env, dfg, h.p, h.p_error, h.ng, n, view, base, metallic,
                                            roughness, specular, mat.ior_eta, mat.ior_kappa, f0_dielectric, seed,
@@ -208,15 +403,16 @@ def render_kernel(features):
         return radiance, cache, scale, scale_material
 
     @wp.func
-    def light_passed(scene: SceneData, light: int, h: SurfaceHit, ls: LightSample) -> wp.vec3:
-        """The share of light ``light`` that reaches the hit through the transmissive surfaces on
-        its shadow ray, 0 if an opaque one blocks it: straight through, each surface passing its
-        transmitted share at the ray's incidence (base colour, 1 - F), volumes absorbing by
-        Beer-Lambert along the chord and passing 1 - F of the exact Fresnel where the ray leaves
-        them. Without refraction the light's path is the straight one: exact through smooth thin
-        walls, an approximation through volumes (no caustics). After MAX_PASS_THROUGH surfaces
-        the next one counts as opaque."""
-        origin, direction, reach = shadow_segment(scene, light, h, ls)
+    def light_passed(scene: SceneData, start: wp.vec3, direction: wp.vec3, length: float) -> wp.vec3:
+        """The share of a light's radiance that passes the transmissive surfaces on the shadow ray
+        from ``start`` along ``direction`` up to ``length``, 0 if an opaque one blocks it:
+        straight through, each surface passing its transmitted share at the ray's incidence (base
+        colour, 1 - F), volumes absorbing by Beer-Lambert along the chord and passing 1 - F of
+        the exact Fresnel where the ray leaves them. Without refraction the light's path is the
+        straight one: exact through smooth thin walls, an approximation through volumes (no
+        caustics). After MAX_PASS_THROUGH surfaces the next one counts as opaque."""
+        origin = wp.vec3(start)
+        reach = float(length)
         passed = wp.vec3(1.0)
         sigma = wp.vec3(0.0)
         for _ in range(MAX_PASS_THROUGH):

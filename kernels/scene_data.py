@@ -2,6 +2,7 @@
 
 import warp as wp
 
+from .area_lights import AreaLightData
 from .lights import LightData
 from .textures import Texels, TextureData
 
@@ -95,8 +96,11 @@ class SceneData:
     materials: wp.array(dtype=MaterialData)
     textures: wp.array(dtype=TextureData)
     texels: Texels
+    # the punctual lights, and the area lights (sphere, rectangle), each in scene order
     lights: wp.array(dtype=LightData)
     num_lights: int
+    area_lights: wp.array(dtype=AreaLightData)
+    num_area_lights: int
 
 
 @wp.func

@@ -42,7 +42,7 @@ from .environment import Environment
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError, PbrwarpError, ResourceError
 from .frame import Frame
 from .ibl import IBL
-from .lights import DirectionalLight, PointLight, SpotLight
+from .lights import AreaLighting, DirectionalLight, PointLight, RectLight, SphereLight, SpotLight
 from .load_limits import LoadLimits
 from .materials import Material
 from .features import Features
@@ -52,8 +52,9 @@ from .shadow_maps import ShadowMap
 from .textures import Texture
 
 __all__ = [
-    "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "IBL", "InputError",
-    "InputTypeError", "LoadLimits", "Material", "PbrwarpError", "PointLight", "Primitive", "ResourceError", "Scene", "ShadowMap", "SpotLight",
+    "AreaLighting", "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "IBL", "InputError",
+    "InputTypeError", "LoadLimits", "Material", "PbrwarpError", "PointLight", "Primitive", "RectLight", "ResourceError", "Scene", "ShadowMap",
+    "SphereLight", "SpotLight",
     "Texture", "check", "denoise", "explain", "render",
 ]
 __version__ = "0.1.0"

@@ -29,7 +29,7 @@ from .emitters import emissive_materials
 from .errors import InputError, PbrwarpError
 from .features import DEFAULT_MAX_BOUNCES, MAX_BOUNCES
 from .frame import MAX_EXPOSURE
-from .lights import DirectionalLight, PointLight, SpotLight
+from .lights import DirectionalLight, PointLight, RectLight, SphereLight, SpotLight
 from .parallel import MAX_THREADS_PER_CORE
 
 PROG = "pbrwarp"
@@ -61,9 +61,13 @@ light specs (--light may repeat; lights from the file are kept):
   dir:DX,DY,DZ:LUX[:R,G,B]                         directional light travelling along DX,DY,DZ
   spot:X,Y,Z:DX,DY,DZ:CANDELA[:INNER,OUTER[:R,G,B]] spot light, cone half-angles in degrees
                                                    (default 0,45)
+  sphere:X,Y,Z:RADIUS:NITS[:R,G,B]                 sphere light centred at X,Y,Z
+  rect:X,Y,Z:UX,UY,UZ:VX,VY,VZ:NITS[:R,G,B]        rectangle light centred at X,Y,Z with perpendicular
+                                                   edges U and V, lighting the side U x V points to
   colours are linear RGB, e.g. 1,0.9,0.8; "directional" is accepted for "dir".
 examples:
   --light dir:-1,-1,-1:3   --light point:0,4,3:50:1,0.8,0.6   --light spot:0,5,0:0,-1,0:200:20,30
+  --light sphere:0,3,0:0.25:800   --light rect:0,3,0:1,0,0:0,0,1:200
 """
 
 
@@ -184,7 +188,7 @@ def parse_colour(text: str) -> tuple[float, float, float]:
 
 
 def parse_light(spec: str):
-    """A light from 'point:...', 'dir:...' or 'spot:...' (see LIGHT_HELP)."""
+    """A light from 'point:...', 'dir:...', 'spot:...', 'sphere:...' or 'rect:...' (see LIGHT_HELP)."""
     fields = spec.split(":")
     kind = fields[0].strip().lower()
 
@@ -230,6 +234,21 @@ def parse_light(spec: str):
             return SpotLight(position=_numbers(fields[1], 3, "position", "0,5,0"), direction=direction,
                              color=colour, intensity=intensity(fields[3], "candela"),
                              inner_cone=math.radians(inner), outer_cone=math.radians(outer))
+        if kind == "sphere":
+            if len(fields) not in (4, 5):
+                raise bad("expected sphere:X,Y,Z:RADIUS:NITS[:R,G,B]")
+            colour = parse_colour(fields[4]) if len(fields) == 5 else (1.0, 1.0, 1.0)
+            return SphereLight(position=_numbers(fields[1], 3, "position", "0,3,0"),
+                               radius=_numbers(fields[2], 1, "radius", "0.25")[0], color=colour,
+                               intensity=intensity(fields[3], "nits"))
+        if kind == "rect":
+            if len(fields) not in (5, 6):
+                raise bad("expected rect:X,Y,Z:UX,UY,UZ:VX,VY,VZ:NITS[:R,G,B]")
+            colour = parse_colour(fields[5]) if len(fields) == 6 else (1.0, 1.0, 1.0)
+            return RectLight(position=_numbers(fields[1], 3, "position", "0,3,0"),
+                             edge_u=_numbers(fields[2], 3, "edge", "1,0,0"),
+                             edge_v=_numbers(fields[3], 3, "edge", "0,0,1"), color=colour,
+                             intensity=intensity(fields[4], "nits"))
     except argparse.ArgumentTypeError as err:
         message = str(err)
         if message.startswith("invalid light"):
@@ -237,7 +256,7 @@ def parse_light(spec: str):
         raise bad(message.removeprefix("invalid ")) from None
     except PbrwarpError as err:
         raise bad(str(err)) from None
-    raise bad(f"unknown light type {kind!r}: expected point, dir or spot")
+    raise bad(f"unknown light type {kind!r}: expected point, dir, spot, sphere or rect")
 
 
 # ---------------------------------------------------------------------- argument parser

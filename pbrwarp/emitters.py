@@ -75,10 +75,10 @@ def face_weights(positions: np.ndarray, indices: np.ndarray, face_primitive: np.
 
 
 def punctual_weights(scene) -> np.ndarray:
-    """Each of ``scene.lights``' selection weight (see the module docstring), in float64."""
+    """Each of ``scene.punctual_lights``' selection weight (see the module docstring), in float64."""
     weights = []
     radius = None
-    for light in scene.lights:
+    for light in scene.punctual_lights:
         y = float(np.asarray(light.color, dtype=np.float64) @ LUMINANCE) * light.intensity
         if light.kind == DIRECTIONAL:
             if radius is None:
@@ -111,7 +111,7 @@ def _build(scene, gpu) -> _Built:
     if count:
         cdf[-1] = 1.0  # rounding must leave no u in [0, 1) past the last entry
     face_pmf = np.zeros(max(len(face_primitive), 1), dtype=np.float32)
-    punctual = len(scene.lights)
+    punctual = len(scene.punctual_lights)
     if count:
         face_pmf[emitting] = pmf[punctual:]
     arrays = (

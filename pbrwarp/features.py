@@ -20,7 +20,7 @@ from . import light_buffers, raster
 from .emitters import emissive_materials
 from .errors import InputError, InputTypeError
 from .shadow_maps import shadow_mode
-from .lights import DIRECTIONAL, POINT, SPOT
+from .lights import DIRECTIONAL, POINT, RECT, SPHERE, SPOT, AreaLighting
 
 
 @dataclass(frozen=True)
@@ -70,6 +70,14 @@ class Features:
     point_lights: bool = True
     directional_lights: bool = True
     spot_lights: bool = True
+    # area lights: spheres and rectangles (pbrwarp.SphereLight, pbrwarp.RectLight)
+    sphere_lights: bool = True
+    rect_lights: bool = True
+    # how area lights are integrated: a pbrwarp.AreaLighting, or False without area lights
+    area_lighting: object = AreaLighting()
+    # area lights trace shadow rays through the BVH (shadow maps and light buffers serve
+    # punctual lights only)
+    area_shadows: bool = True
     # "rays" (a shadow ray per light and hit), "map" (shadow-map lookups) or False
     shadows: object = "rays"
     supersampling: bool = True
@@ -104,11 +112,14 @@ class Features:
 
     @classmethod
     def everything(cls, spp: int = 1, aovs: bool = True, brdf: BRDF = BRDF(), shadows="rays", ibl: IBL = IBL(),
-                   environment_background: bool = True, texture_filter: str = "trilinear") -> "Features":
+                   environment_background: bool = True, texture_filter: str = "trilinear",
+                   area_lighting: AreaLighting = AreaLighting()) -> "Features":
         """Every effect compiled in and primary rays ray cast: the unspecialized kernel, the
-        reference for specialization. Sampling, outputs, BRDF, the shadow technique, the IBL rungs,
-        what misses show and the texture filter follow the options."""
-        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, shadows=shadow_mode(shadows)[0], environment=ibl,
+        reference for specialization. Sampling, outputs, BRDF, the shadow technique, the IBL and
+        area-light rungs, what misses show and the texture filter follow the options."""
+        technique = shadow_mode(shadows)[0]
+        return cls(supersampling=spp > 1, aovs=aovs, brdf=brdf, shadows=technique, environment=ibl,
+                   area_lighting=area_lighting, area_shadows=bool(technique),
                    environment_background=environment_background, texture_filter=_texture_filter(texture_filter),
                    rough_transmission="sampled" if ibl.method == "monte_carlo" else "prefiltered")
 
@@ -199,7 +210,7 @@ def _path_words(path: str) -> str:
 
 def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRDF(), visibility: str = "auto",
            samples: int = 480_000, ibl: IBL = IBL(), background_given: bool = False,
-           texture_filter: str = "trilinear", integrator: str = "direct",
+           texture_filter: str = "trilinear", area_lighting: AreaLighting = AreaLighting(), integrator: str = "direct",
            max_bounces: int = DEFAULT_MAX_BOUNCES) -> list[Decision]:
     """Every effect with whether the render simulates it and why, in the order explain prints.
     ``integrator`` "path" (with ``max_bounces``) decides for the path tracer (path_decisions)."""
@@ -208,7 +219,9 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     prims = scene.primitives
     rows = gpu.material_rows
     mats = [p.material for p in prims]
-    count = {k: sum(1 for light in scene.lights if light.kind == k) for k in (POINT, DIRECTIONAL, SPOT)}
+    count = {k: sum(1 for light in scene.lights if light.kind == k) for k in (POINT, DIRECTIONAL, SPOT, SPHERE, RECT)}
+    punctual = count[POINT] + count[DIRECTIONAL] + count[SPOT]
+    areas = count[SPHERE] + count[RECT]
 
     def slot(attr, label):
         users = sum(1 for r in rows if getattr(r, attr) >= 0)
@@ -227,6 +240,12 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     for name, kind, label in (("point_lights", POINT, "point light"), ("directional_lights", DIRECTIONAL, "directional light"),
                               ("spot_lights", SPOT, "spot light")):
         add(name, count[kind], _count(count[kind], label) if count[kind] else f"no {label}s")
+    for name, kind, label in (("sphere_lights", SPHERE, "sphere light"), ("rect_lights", RECT, "rectangle light")):
+        add(name, count[kind], _count(count[kind], label) if count[kind] else f"no {label}s")
+    if areas:
+        decisions.append(Decision("area_lighting", area_lighting, f"area lights: {area_lighting.describe()}"))
+    else:
+        add("area_lighting", False, "no area lights")
     lit_mats = [m for m in mats if not m.unlit]
     if not scene.lights and scene.environment is None and not (tracing_paths and emissive_materials(scene)):
         add("diffuse", False, "no lights: only emission and the background")
@@ -242,23 +261,38 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
                 f"Fresnel" if brdf.model == "microfacet" else f"legacy normalized {brdf.model} specular lobe")
         add("specular", specular, lobe if specular else "no specular lobe: every material has specular = 0 and metallic = 0")
     shadows, _ = shadow_mode(shadows)
+    convex = (bool(shadows) and bool(scene.lights) and len(prims) == 1 and not prims[0].material.see_through
+              and _is_convex(scene, prims[0]))
     if not shadows:
         add("shadows", False, "no shadow rays: shadows=False")
-    elif not scene.lights:
-        add("shadows", False, "no shadow rays: no lights")
-    elif len(prims) == 1 and not prims[0].material.see_through and _is_convex(scene, prims[0]):
+    elif not punctual:
+        add("shadows", False, "no shadow rays: no lights" if not areas else "no shadow rays for punctual lights: none")
+    elif convex:
         add("shadows", False, "no shadow rays: one convex mesh cannot shadow itself beyond what n.l does")
     elif shadows == "map":
-        decisions.append(Decision("shadows", "map", f"shadow maps: {len(scene.lights)} lookups per hit, "
+        decisions.append(Decision("shadows", "map", f"shadow maps: {punctual} lookups per hit, "
                                   f"maps rasterized from each light ({scene.triangle_count:,} triangles)"))
     else:
         side = light_buffers.scene_resolution(scene)
         finer = (f", finer than the {light_buffers.RESOLUTION}² of scenes up to "
                  f"~{light_buffers.RESOLUTION_TRIANGLES:,} triangles" if side > light_buffers.RESOLUTION else "")
-        decisions.append(Decision("shadows", "rays", f"shadow rays: {len(scene.lights)} per hit, against "
+        decisions.append(Decision("shadows", "rays", f"shadow rays: {punctual} per hit, against "
                                   f"{scene.triangle_count:,} triangles, through each light's light buffer "
                                   f"(the triangles seen in each of {side}² directions per view{finer}; rays leaving "
                                   "a triangle, or its interior, marked clear of the light skip it)"))
+    if not areas:
+        add("area_shadows", False, "no area-light shadows: no area lights")
+    elif not shadows:
+        add("area_shadows", False, "no area-light shadow rays: shadows=False")
+    elif convex:
+        add("area_shadows", False, "no area-light shadow rays: one convex mesh cannot shadow itself beyond what "
+            "the horizon does")
+    else:
+        how = (f"{area_lighting.samples} per area light and hit (soft shadows)" if area_lighting.method == "monte_carlo"
+               else "one per area light and hit, to its centre (hard shadows)")
+        add("area_shadows", True, f"area-light shadow rays: {how}, through the BVH"
+            + ("; shadow maps serve punctual lights only" if shadows == "map" else
+               "; light buffers serve punctual lights only (area-light rays start from points across the light)"))
     environment = scene.environment
     if environment is None:
         add("environment", False, "no environment lighting: scene.environment is None")
@@ -333,8 +367,8 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     add("vertex_colors", coloured, f"vertex colours: {_count(coloured, 'mesh')}" if coloured else "no vertex colours")
     add("supersampling", spp > 1, f"{spp} stratified samples per pixel" if spp > 1 else "one ray through each pixel centre (spp = 1)")
     masked = sum(1 for m in mats if m.alpha_mode == "MASK")
-    traced = any((d.name == "shadows" and d.present == "rays") or (d.name == "environment" and d.present
-                                                                  and d.present.shadowed) for d in decisions)
+    traced = any((d.name == "shadows" and d.present == "rays") or (d.name == "area_shadows" and d.present)
+                 or (d.name == "environment" and d.present and d.present.shadowed) for d in decisions)
     if not traced:
         add("masked_occlusion", False, "no cut-outs in occlusion rays: no shadow rays nor shadowed environment rays")
     else:
@@ -352,7 +386,8 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     add("volume", volumes, f"rays refract into and out of closed volumes, absorbed inside (KHR_materials_volume: "
         f"{_count(volumes, 'material')})" if volumes else "no volumes: every transmissive surface is thin-walled"
         if transmissive else "no volumes: no transmissive material")
-    traced_shadows = next(d.present for d in decisions if d.name == "shadows") == "rays"
+    traced_shadows = (next(d.present for d in decisions if d.name == "shadows") == "rays"
+                      or next(d.present for d in decisions if d.name == "area_shadows"))
     if transmissive and traced_shadows:
         add("transmissive_shadows", True, "shadow rays pass transmissive surfaces, tinted by what they transmit "
             "(straight, without refraction)")
@@ -399,8 +434,10 @@ PATH_UNSIMULATED = {
     "volume": ("volume (KHR_materials_volume)", "its surfaces are thin walls: no refraction, no absorption"),
     "rough_transmission": ("rough transmission (transmissive materials with roughness > 0)",
                            "light passes them straight, unblurred"),
+    "sphere_lights": ("sphere lights (pw.SphereLight)", "they light nothing"),
+    "rect_lights": ("rectangle lights (pw.RectLight)", "they light nothing"),
 }
-_PATH_DROPPED = ("clearcoat_textures", "sheen_textures", "transmissive_shadows")
+_PATH_DROPPED = ("clearcoat_textures", "sheen_textures", "transmissive_shadows", "area_lighting", "area_shadows")
 
 
 def path_unsimulated(decisions: list[Decision], scene) -> list[str]:
@@ -423,7 +460,7 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
     """``decisions`` (the direct integrator's) turned into the path tracer's: what it traces
     instead of the direct kernel's shadow and visibility techniques, and the extensions it does not
     simulate yet, dropped (pbrwarp.render warns about them)."""
-    lights, emitting = len(scene.lights), emissive_materials(scene)
+    lights, emitting = len(scene.punctual_lights), emissive_materials(scene)
     masked = sum(1 for p in scene.primitives if p.material.alpha_mode == "MASK")
     sources = []
     if lights:
@@ -479,7 +516,8 @@ def path_features(f: Features) -> Features:
     return dataclasses.replace(
         f, integrator="path", visibility="raycast", supersampling=True, shadows="rays", occlusion_texture=False,
         environment=IBL() if f.environment else False, clearcoat=False, clearcoat_textures=False, sheen=False,
-        sheen_textures=False, volume=False, rough_transmission=False, transmissive_shadows=False)
+        sheen_textures=False, volume=False, rough_transmission=False, transmissive_shadows=False,
+        sphere_lights=False, rect_lights=False, area_lighting=False, area_shadows=False)
 
 
 def check_integrator(integrator) -> str:

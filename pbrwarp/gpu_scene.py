@@ -20,13 +20,14 @@ import warp as wp
 
 from . import validate
 from .errors import InputError
-from .lights import SPOT
+from .lights import SPHERE, SPOT
 from .locality import inverse_permutation, locality_order
 from .materials import Material
 from .raster import Clusters, triangle_clusters
 from .scene import unit_rows
 from .tangents import frame_uv_set, generate_tangents
 from .textures import UNORM8_DECODE, WRAP_MODES, Texture, mip_levels, mip_texel_count
+from pbrwarp.kernels.area_lights import AREA_RECT, AREA_SPHERE, AreaLightData
 from pbrwarp.kernels.lights import LightData
 from pbrwarp.kernels.scene_data import INFINITE_IOR, MaterialData, SceneData
 from pbrwarp.kernels.textures import TEXELS_FLOAT, TEXELS_SRGB8, TEXELS_UNORM8, Texels, TextureData, texel_store
@@ -291,6 +292,20 @@ def _light_row(light) -> LightData:
     return row
 
 
+def _area_light_row(light) -> AreaLightData:
+    row = AreaLightData()
+    row.kind = AREA_SPHERE if light.kind == SPHERE else AREA_RECT
+    row.radiance = _float32_vector(np.asarray(light.color) * light.intensity,
+                                   f"{type(light).__name__} color * intensity")
+    row.position = wp.vec3(*light.position)
+    row.radius = getattr(light, "radius", 0.0)
+    row.edge_u = wp.vec3(*getattr(light, "edge_u", (0.0, 0.0, 0.0)))
+    row.edge_v = wp.vec3(*getattr(light, "edge_v", (0.0, 0.0, 0.0)))
+    row.normal = wp.vec3(*getattr(light, "normal", (0.0, 0.0, 1.0)))
+    row.area = light.area
+    return row
+
+
 def upload(scene) -> GpuScene:
     """The scene as a SceneData struct, reusing cached geometry and texels when unchanged, and the
     whole upload while no material or light changed either."""
@@ -318,7 +333,8 @@ def upload(scene) -> GpuScene:
 
 def _upload_rows(scene, prims, geometry: _Geometry, texels: _Texels) -> GpuScene:
     materials = [_material_row(p.material, texels.slots, p.uvs is not None) for p in prims]
-    lights = [_light_row(light) for light in scene.lights]
+    lights = [_light_row(light) for light in scene.punctual_lights]
+    area_lights = [_area_light_row(light) for light in scene.area_lights]
     data = SceneData()
     data.mesh = geometry.mesh.id
     data.positions, data.indices = geometry.positions, geometry.indices
@@ -329,7 +345,10 @@ def _upload_rows(scene, prims, geometry: _Geometry, texels: _Texels) -> GpuScene
     data.textures, data.texels = texels.table, texels.texels
     data.lights = wp.array(lights if lights else [LightData()], dtype=LightData, device="cpu")
     data.num_lights = len(lights)
-    return GpuScene(data=data, material_rows=materials, _keep=(geometry, texels, data.materials, data.lights))
+    data.area_lights = wp.array(area_lights if area_lights else [AreaLightData()], dtype=AreaLightData, device="cpu")
+    data.num_area_lights = len(area_lights)
+    return GpuScene(data=data, material_rows=materials,
+                    _keep=(geometry, texels, data.materials, data.lights, data.area_lights))
 
 
 def _content_key(value):

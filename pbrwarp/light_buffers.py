@@ -84,7 +84,7 @@ def _light_point(light):
 def _per_light_face_flags(scene, gpu, kind: str, seen_from) -> list[wp.array]:
     """Per light of ``scene``, gpu_scene.face_flags of ``seen_from(scene, prim, the light's point)``."""
     return [face_flags(scene, gpu, kind, [seen_from(scene, prim, _light_point(light)) for prim in scene.primitives])
-            for light in scene.lights]
+            for light in scene.punctual_lights]
 
 
 def front_only_faces(scene, gpu) -> list[wp.array]:
@@ -119,7 +119,7 @@ def resolution(triangles: int, views: int) -> int:
 def scene_resolution(scene) -> int:
     """resolution() for ``scene``: its triangles, and the views of all its lights. Cheap (no
     bounds, no views made): every render's explain text asks for it."""
-    return resolution(scene.triangle_count, sum(view_count(light) for light in scene.lights))
+    return resolution(scene.triangle_count, sum(view_count(light) for light in scene.punctual_lights))
 
 
 @dataclass(frozen=True)
@@ -144,7 +144,7 @@ def build(scene, gpu, threads: int | None = None) -> lb.LightBuffers:
     # the materials' sides and cut-outs decide which triangles are listed and marked
     # (front_only_faces, closed_faces)
     sides = tuple((p.material.double_sided, p.material.alpha_mode == "MASK") for p in scene.primitives)
-    key = (gpu.geometry, tuple(light_geometry(light) for light in scene.lights), sides)
+    key = (gpu.geometry, tuple(light_geometry(light) for light in scene.punctual_lights), sides)
     threads = thread_count(threads)
     kept = scene.cache.lookup("light buffers", key)
     if kept is None:  # a first frame, or one rendered while another thread builds them
@@ -167,10 +167,10 @@ def _build(scene, gpu, threads: int) -> lb.LightBuffers:
     lo, hi = scene.bounds()
     center = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
-    clearances = _clearances(gpu, scene.lights)
+    clearances = _clearances(gpu, scene.punctual_lights)
     side = scene_resolution(scene)
     views, spans, view_closed = [], [], []
-    for light, clearance, light_closed in zip(scene.lights, clearances, closed):
+    for light, clearance, light_closed in zip(scene.punctual_lights, clearances, closed):
         if clearance < MIN_CLEARANCE_RADII * radius:
             spans.append((0, 0))
             continue
@@ -263,7 +263,7 @@ def _build(scene, gpu, threads: int) -> lb.LightBuffers:
     buffers.clearance = wp.array([min(c, 3e38) for c in clearances] or [0.0], dtype=float, device="cpu")
     buffers.cell_start, buffers.cell_faces, buffers.cell_near = cell_start, cell_faces, cell_near
     buffers.cell_clear = cell_clear
-    buffers.triangle_clear = wp.zeros(max(len(scene.lights) * triangles, 1), dtype=wp.uint8, device="cpu")
+    buffers.triangle_clear = wp.zeros(max(len(scene.punctual_lights) * triangles, 1), dtype=wp.uint8, device="cpu")
     buffers.region_grids, buffers.region_clear = _no_regions()
     buffers.triangles = triangles
     buffers.resolution = side

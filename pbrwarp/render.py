@@ -23,6 +23,7 @@ from .features import (DEFAULT_MAX_BOUNCES, MAX_BOUNCES, Features, check_integra
 from .frame import Frame
 from .gpu_scene import back_face_culling, upload
 from .ibl import IBL, ibl_for_quality
+from .lights import AreaLighting, area_lighting_for_quality
 from .parallel import run_all, thread_count
 from .raster import reused_buffer, visibility_buffer
 from .light_buffers import build as build_light_buffers, no_light_buffers
@@ -145,6 +146,7 @@ def render(
     integrator: str = "direct",
     max_bounces: int | None = None,
     first_sample: int = 0,
+    area_lighting: AreaLighting | None = None,
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
@@ -174,8 +176,9 @@ def render(
     - ``specialize``: False runs the kernel with every effect compiled in, and ray-cast primary
       visibility, instead of the one built for this scene (same image, slower; for comparison).
     - ``quality``: "fast", "balanced" (None, the default), "accurate" or "reference", a preset of
-      BRDF and environment-lighting rungs (pbrwarp.brdf.PRESETS; docs/accuracy.md). ``brdf``
-      (:class:`BRDF`) and ``ibl`` (:class:`IBL`) choose those rungs themselves and win over it.
+      BRDF, environment-lighting and area-light rungs (pbrwarp.brdf.PRESETS; docs/accuracy.md).
+      ``brdf`` (:class:`BRDF`), ``ibl`` (:class:`IBL`) and ``area_lighting``
+      (:class:`AreaLighting`) choose those rungs themselves and win over it.
     - ``visibility``: how each camera sample finds its surface: "raycast" (a BVH query per
       sample), "raster" (a rasterized visibility buffer, then the ray caster's own ray-triangle
       test on the triangle it names, so both shade identically where they pick the same
@@ -205,6 +208,10 @@ def render(
       random numbers), so a render of samples [a, b) continues one of [0, a): (a * frame_0_a.rgb
       + (b - a) * frame_a_b.rgb) / b is the render of ``spp=b``, up to rounding, for the same
       ``seed`` and options; renders with different seeds are independent.
+    - ``area_lighting``: how sphere and rectangle lights are integrated, an :class:`AreaLighting`:
+      the representative point (the default; noise-free, hard shadows) or Monte Carlo with N
+      shadowed samples per light and hit (soft shadows; the "reference" preset's, with 64).
+      docs/lighting.md says what each costs.
 
     Raises InputTypeError for a scene, camera or option of the wrong type, InputError for a value
     out of range, a scene without meshes or a frame past a limit (before anything is allocated),
@@ -233,13 +240,15 @@ def render(
 
     ibl = ibl_for_quality(quality, ibl)
     brdf = brdf_for_quality(quality, brdf)
+    area_lighting = area_lighting_for_quality(quality, area_lighting)
     gpu = upload(scene)
     options = dict(shadows=shadows, spp=spp, aovs=aovs, brdf=brdf, visibility=visibility, samples=width * height * spp,
                    ibl=ibl, background_given=background_given, texture_filter=texture_filter, integrator=integrator,
-                   max_bounces=max_bounces)
+                   max_bounces=max_bounces, area_lighting=area_lighting)
     features = scene_features(scene, gpu, **options)
     if not specialize:
-        features = Features.everything(spp, aovs, brdf, shadows, ibl, features.environment_background, texture_filter)
+        features = Features.everything(spp, aovs, brdf, shadows, ibl, features.environment_background, texture_filter,
+                                       area_lighting)
     if path:
         unsimulated = path_unsimulated(decide(scene, gpu, **{**options, "integrator": "direct"}), scene)
         if unsimulated:
@@ -351,7 +360,7 @@ def _render_path(scene: Scene, gpu, features: Features, camera: Camera, width: i
 def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
             brdf: BRDF | None = None, visibility: str = "auto", width: int = 800, height: int = 600,
             ibl: IBL | None = None, background=None, texture_filter: str = "trilinear", integrator: str = "direct",
-            max_bounces: int | None = None, **_render_options) -> str:
+            max_bounces: int | None = None, area_lighting: AreaLighting | None = None, **_render_options) -> str:
     """The text saying which effects :func:`render` with these options simulates for ``scene``,
     and why each absent one was dropped (e.g. "no shadow rays: one convex mesh cannot shadow
     itself ..."), with the estimated cost of each primary visibility path, and, last, what the
@@ -372,5 +381,6 @@ def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality
     return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf),
                            visibility=visibility, samples=samples, ibl=ibl_for_quality(quality, ibl),
                            background_given=background is not None, texture_filter=texture_filter,
-                           integrator=integrator, max_bounces=DEFAULT_MAX_BOUNCES if bounces is None else bounces),
+                           integrator=integrator, max_bounces=DEFAULT_MAX_BOUNCES if bounces is None else bounces,
+                           area_lighting=area_lighting_for_quality(quality, area_lighting)),
                     scene.load_warnings)

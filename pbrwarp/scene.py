@@ -11,7 +11,7 @@ from . import validate
 from .camera import Camera
 from .errors import AssetFormatError, AssetNotFoundError, InputError, InputTypeError
 from .gltf import load_gltf
-from .lights import DirectionalLight, PointLight, SpotLight
+from .lights import AREA_KINDS, PUNCTUAL_KINDS, DirectionalLight, PointLight, RectLight, SphereLight, SpotLight
 from .load_limits import LoadLimits
 from .materials import Material
 from .scene_cache import SceneCache
@@ -31,8 +31,8 @@ _IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".webp", ".gif", ".bmp", ".tga", "
 class Scene:
     """Meshes, materials and lights to render.
 
-    ``primitives`` (list of :class:`Primitive`), ``lights`` (point, directional and spot
-    lights), ``cameras`` (those a file defines; ``render`` uses the first by default) and
+    ``primitives`` (list of :class:`Primitive`), ``lights`` (point, directional, spot,
+    sphere and rectangle lights), ``cameras`` (those a file defines; ``render`` uses the first by default) and
     ``environment`` may be read and changed freely between renders; ``cache`` keeps what renders
     derived from them. ``load_warnings`` (a tuple of strings) holds the warnings :meth:`load`
     issued about what in the file pbrwarp does not honour; :func:`pbrwarp.explain` lists them. One
@@ -89,13 +89,25 @@ class Scene:
         return prim
 
     def add_light(self, light):
-        """Add a :class:`PointLight`, :class:`DirectionalLight` or :class:`SpotLight` and return it
-        (InputTypeError for anything else)."""
-        if not isinstance(light, (PointLight, DirectionalLight, SpotLight)):
-            raise InputTypeError(
-                f"add_light takes a PointLight, DirectionalLight or SpotLight, got {type(light).__name__}")
+        """Add a :class:`PointLight`, :class:`DirectionalLight`, :class:`SpotLight`,
+        :class:`SphereLight` or :class:`RectLight` and return it (InputTypeError for anything
+        else)."""
+        if not isinstance(light, (PointLight, DirectionalLight, SpotLight, SphereLight, RectLight)):
+            raise InputTypeError(f"add_light takes a PointLight, DirectionalLight, SpotLight, SphereLight or "
+                                 f"RectLight, got {type(light).__name__}")
         self.lights.append(light)
         return light
+
+    @property
+    def punctual_lights(self) -> list:
+        """The point, directional and spot lights of ``lights``, in order (those shadow maps and
+        light buffers are built for)."""
+        return [light for light in self.lights if light.kind in PUNCTUAL_KINDS]
+
+    @property
+    def area_lights(self) -> list:
+        """The sphere and rectangle lights of ``lights``, in order."""
+        return [light for light in self.lights if light.kind in AREA_KINDS]
 
     # ------------------------------------------------------------------ loading
     @classmethod

@@ -135,7 +135,7 @@ def build(scene, gpu, settings: ShadowMap, threads: int | None) -> ShadowMaps:
     # a cut-out's texture by identity and revision: an image set anew gives other cut-outs
     masks = tuple((m.alpha_cutoff, m.base_color[3], None if m.base_color_texture is None
                    else validate.revision(m.base_color_texture)) for m in masked)
-    key = (gpu.geometry, tuple(light_geometry(light) for light in scene.lights), settings, masks)
+    key = (gpu.geometry, tuple(light_geometry(light) for light in scene.punctual_lights), settings, masks)
     return scene.cache.get("shadow maps", key, lambda: _render_maps(scene, gpu, settings, masked, threads))
 
 
@@ -145,7 +145,7 @@ def _render_maps(scene, gpu, settings: ShadowMap, masked: list, threads: int | N
     center = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-30)
     depths, views, spans = [], [], []
-    for light in scene.lights:
+    for light in scene.punctual_lights:
         # a texel of margin per PCF tap, so that filtering at the edge of a view stays inside the map
         pairs = light_views(light, center, radius, settings.resolution, settings.pcf)
         spans.append((len(views), len(pairs)))

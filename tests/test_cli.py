@@ -112,7 +112,7 @@ BAD_INPUTS = {
     "fov 180": (["render", "{obj}", "-o", "{out}", "--fov", "180"], "between 0 and 180"),
     "negative light": (["render", "{obj}", "-o", "{out}", "--light", "point:0,0,5:-10"], ">= 0"),
     "short light position": (["render", "{obj}", "-o", "{out}", "--light", "dir:0,-1:3"], "3 comma-separated"),
-    "unknown light type": (["render", "{obj}", "-o", "{out}", "--light", "laser:0,0,0:1"], "point, dir or spot"),
+    "unknown light type": (["render", "{obj}", "-o", "{out}", "--light", "laser:0,0,0:1"], "point, dir, spot, sphere or rect"),
     "bad spot cone": (["render", "{obj}", "-o", "{out}", "--light", "spot:0,1,0:0,-1,0:5:40,20"], "INNER <= OUTER"),
     "unknown tonemap": (["render", "{obj}", "-o", "{out}", "--tonemap", "filmic"], "invalid choice"),
     "missing folder": (["render", "{obj}", "-o", "{missing_dir_out}"], "does not exist"),

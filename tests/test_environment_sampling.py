@@ -20,7 +20,7 @@ from pbrwarp.kernels.ibl import EnvironmentData, environment_radiance
 from pbrwarp.kernels.scene_data import SceneData
 from pbrwarp.kernels.sh import SH_CLAMPED_COSINE_RESIDUAL
 
-from statistics import chi_square_ok
+from goodness_of_fit import chi_square_ok
 from test_ibl import brute_force_irradiance, look_up, random_directions, rotate_y, sh_residual_norm, small_hdr
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709

@@ -30,7 +30,7 @@ from pbrwarp.kernels.ibl import (
 from pbrwarp.kernels.sh import SH_CLAMPED_COSINE_RESIDUAL
 
 from assets import hdr
-from statistics import chi_square_ok
+from goodness_of_fit import chi_square_ok
 
 
 

@@ -279,3 +279,18 @@ def test_command_line_path_integrator(tmp_path):
     assert np.load(out).shape == (6, 8, 4)
     assert cli.main(["render", str(mesh), "-o", str(out), "--bounces", "2"]) == cli.EXIT_USAGE
     assert cli.main(["render", str(mesh), "-o", str(out), "--integrator", "path", "--bounces", "-1"]) == cli.EXIT_USAGE
+
+
+def test_area_lights_are_named_as_unsimulated_and_light_nothing():
+    """The path tracer does not sample sphere or rectangle lights yet: a warning names them, and
+    a scene lit by them alone renders black (never lit by a wrong estimate)."""
+    scene = pw.Scene()
+    scene.add_mesh(quad(size=4.0))
+    scene.add_light(pw.SphereLight(position=(0.0, 0.0, 1.0), radius=0.2, intensity=10.0))
+    scene.add_light(pw.RectLight(position=(0.0, 0.0, 2.0), edge_u=(1.0, 0.0, 0.0), edge_v=(0.0, -1.0, 0.0),
+                                 intensity=10.0))
+    cam = pw.Camera.look_at(eye=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0), fov_y=40.0)
+    with pytest.warns(UserWarning, match="sphere lights.*rectangle lights"):
+        frame = pw.render(scene, cam, 16, 16, spp=4, integrator="path", progress=False)
+    assert np.all(frame.rgb == 0.0)
+    assert "sphere lights (pw.SphereLight) not simulated by the path tracer" in pw.explain(scene, integrator="path")

@@ -15,7 +15,7 @@ from pbrwarp.kernels.bsdf_sampling import (pdf_brdf_direction, power_heuristic, 
 from pbrwarp.kernels.emitters import LightTable, area_to_solid_angle, choose_light, sample_triangle
 from pbrwarp.kernels.random import sample_key, uniform
 
-from statistics import chi_square_ok
+from goodness_of_fit import chi_square_ok
 from test_ibl import vndf_reflection_pdf
 
 

@@ -20,7 +20,7 @@ from pbrwarp.scene import Primitive
 import reference as ref
 from assets import BOARDS, board
 from scenes import head_on_camera, quad, render_checked
-from statistics import chi_square_ok
+from goodness_of_fit import chi_square_ok
 
 GLOW = np.array([0.2, 0.5, 0.9])  # nits of the emitter behind the glass
 TINT = (0.9, 0.6, 0.3)
