@@ -289,13 +289,7 @@ def render(
     # compile or load the kernel once, before many threads would all try at once
     load_for_cpu(kernel)
     _run_with_progress(launch, thread_count(threads), rows_taken, height, progress)
-    return Frame(
-        rgb=out_rgb.numpy().reshape(height, width, 3),
-        depth=out_depth.numpy() if features.aovs else None,
-        normal=out_normal.numpy().reshape(height, width, 3) if features.aovs else None,
-        alpha=out_alpha.numpy(),
-        background=background,
-    )
+    return _frame(out_rgb, out_alpha, out_depth, out_normal, features.aovs, width, height, background)
 
 
 def _path_options(integrator, max_bounces, first_sample, spp: int, shadows):
@@ -348,14 +342,19 @@ def _render_path(scene: Scene, gpu, features: Features, camera: Camera, width: i
 
     load_for_cpu(kernel)  # compiled or loaded once, before many threads would all try at once
     _run_with_progress(launch, thread_count(threads), rows_taken, height, progress)
+    return _frame(out_rgb, out_alpha, out_depth, out_normal, features.aovs, width, height, background)
+
+
+
+def _frame(out_rgb, out_alpha, out_depth, out_normal, aovs: bool, width: int, height: int, background) -> Frame:
+    """The Frame a render kernel's output arrays hold (depth and normal only with ``aovs``)."""
     return Frame(
         rgb=out_rgb.numpy().reshape(height, width, 3),
-        depth=out_depth.numpy() if features.aovs else None,
-        normal=out_normal.numpy().reshape(height, width, 3) if features.aovs else None,
+        depth=out_depth.numpy() if aovs else None,
+        normal=out_normal.numpy().reshape(height, width, 3) if aovs else None,
         alpha=out_alpha.numpy(),
         background=background,
     )
-
 
 def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
             brdf: BRDF | None = None, visibility: str = "auto", width: int = 800, height: int = 600,
