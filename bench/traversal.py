@@ -1,5 +1,5 @@
-"""Does a traversal of our own beat Warp's ``mesh_query_ray`` on the CPU? An experiment for the
-path tracer's speed (docs/integrators.md, "Speed").
+"""Ray casting rates: Warp's ``mesh_query_ray`` with each BVH leaf size, and a traversal of our own,
+on the CPU. An experiment for the path tracer's speed (docs/integrators.md, "Speed").
 
     python bench/traversal.py [--rays 300000] [--repeats 5]
 
@@ -8,8 +8,8 @@ depth first, and traverses it in a Warp function written as a renderer would: ne
 a fixed stack, Möller & Trumbore's ray-triangle test on precomputed edges (not watertight, so a
 lower bound on a robust version's cost). The same random rays (from random points of a box, in
 uniformly random directions, one thread) go through it and through ``wp.mesh_query_ray`` on
-Warp's own BVH of the same triangles. Both must find the same nearest hits (the sums of their
-distances are compared). Scenes: the Cornell box seen from inside (pbrwarp.meshes.cornell_box();
+Warp's own SAH BVH of the same triangles, built with leaves of at most 1, 2, 4 (Warp's default)
+and 8 triangles. All must find the same nearest hits (the sums of their distances are compared). Scenes: the Cornell box seen from inside (pbrwarp.meshes.cornell_box();
 large triangles whose boxes all contain the ray origins), the decimated bunny installed with
 pbrwarp, and the 69k-triangle scan when the shared assets are beside the clone, from around them.
 
@@ -33,6 +33,7 @@ from pbrwarp import meshes  # noqa: E402
 
 BINS = 12
 LEAF = 2
+WARP_LEAF_SIZES = (1, 2, 4, 8)
 
 
 def _surface_area(lower, upper):
@@ -212,21 +213,23 @@ def measure(positions, faces, ray_box, rays, repeats):
     b.right, b.leaf = wp.array(right, dtype=wp.int32), wp.array(leaf, dtype=wp.vec2i)
     b.v0 = wp.array(tri[:, 0], dtype=wp.vec3)
     b.e1, b.e2 = wp.array(tri[:, 1] - tri[:, 0], dtype=wp.vec3), wp.array(tri[:, 2] - tri[:, 0], dtype=wp.vec3)
-    mesh = wp.Mesh(points=wp.array(positions.astype(np.float32), dtype=wp.vec3),
-                   indices=wp.array(faces.astype(np.int32).ravel(), dtype=wp.int32))
+    points = wp.array(positions.astype(np.float32), dtype=wp.vec3)
+    indices = wp.array(faces.astype(np.int32).ravel(), dtype=wp.int32)
+    warp_meshes = {leaf: wp.Mesh(points=points, indices=indices, bvh_leaf_size=leaf) for leaf in WARP_LEAF_SIZES}
     lo, hi = (wp.vec3(*v) for v in ray_box)
-    outs = {"own": wp.zeros(1, dtype=float), "warp": wp.zeros(1, dtype=float)}
+    runs = {"own": (cast_own, b), **{f"warp leaf {leaf}": (cast_warp, m.id) for leaf, m in warp_meshes.items()}}
+    outs = {name: wp.zeros(1, dtype=float) for name in runs}
 
-    def run(kernel, first, name):
+    def run(name):
+        kernel, first = runs[name]
         wp.launch(kernel, 1, [first, lo, hi, rays, outs[name]], device="cpu")
         wp.synchronize_device("cpu")
 
-    seconds = interleaved_medians({"own": lambda: run(cast_own, b, "own"),
-                                   "warp": lambda: run(cast_warp, mesh.id, "warp")}, repeats)
-    sums = {name: float(out.numpy()[0]) for name, out in outs.items()}
+    seconds = interleaved_medians({name: (lambda name=name: run(name)) for name in runs}, repeats)
+    sums = [float(out.numpy()[0]) for out in outs.values()]
     return {"triangles": len(faces), "nodes": len(lower), "build_s": build_s,
-            "own_mrays_s": rays / seconds["own"] / 1e6, "warp_mrays_s": rays / seconds["warp"] / 1e6,
-            "same_hits": bool(np.isclose(sums["own"], sums["warp"], rtol=1e-5))}
+            "mrays_s": {name: rays / t / 1e6 for name, t in seconds.items()},
+            "same_hits": bool(np.allclose(sums, sums[0], rtol=1e-5))}
 
 
 def scenes():
@@ -254,13 +257,14 @@ def main(argv=None):
     rows = []
     for name, positions, faces, box in scenes():
         rows.append({"scene": name, **measure(positions, faces, box, args.rays, args.repeats)})
-    lines = ["| scene | triangles | own BVH nodes | own build (NumPy), s | own traversal, M rays/s | "
-             "mesh_query_ray, M rays/s | own / Warp | same hits |", "|---|---|---|---|---|---|---|---|"]
+    names = list(rows[0]["mrays_s"])
+    lines = ["| scene | triangles | " + " | ".join(f"{n}, M rays/s" for n in names)
+             + " | own build (NumPy), s | same hits |", "|---|---|" + "---|" * (len(names) + 2)]
     for r in rows:
-        lines.append(f"| {r['scene']} | {r['triangles']} | {r['nodes']} | {r['build_s']:.2f} | {r['own_mrays_s']:.2f} | "
-                     f"{r['warp_mrays_s']:.2f} | {r['own_mrays_s'] / r['warp_mrays_s']:.2f}x | {r['same_hits']} |")
+        rates = " | ".join(f"{r['mrays_s'][n]:.2f}" for n in names)
+        lines.append(f"| {r['scene']} | {r['triangles']} | {rates} | {r['build_s']:.2f} | {r['same_hits']} |")
     lines += ["", f"{args.rays} closest-hit rays per run on one thread, medians of {args.repeats} runs after a warm-up, "
-              "the two traversals timed in turn."]
+              "the traversals timed in turn. 'warp leaf 4' is what wp.Mesh builds by default."]
     write_results("traversal", command_line(ap, args), {"rows": rows}, "\n".join(lines) + "\n")
 
 
