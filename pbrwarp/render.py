@@ -356,7 +356,7 @@ def _frame(out_rgb, out_alpha, out_depth, out_normal, aovs: bool, width: int, he
         background=background,
     )
 
-def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
+def explain(scene: Scene, camera: Camera | None = None, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
             brdf: BRDF | None = None, visibility: str = "auto", width: int = 800, height: int = 600,
             ibl: IBL | None = None, background=None, texture_filter: str = "trilinear", integrator: str = "direct",
             max_bounces: int | None = None, area_lighting: AreaLighting | None = None, **_render_options) -> str:
@@ -365,9 +365,13 @@ def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality
     itself ..."), with the estimated cost of each primary visibility path, and, last, what the
     scene's file asks for that pbrwarp does not honour (``scene.load_warnings``). Takes render's options
     (those that decide nothing it says, like ``camera`` or ``threads``, are accepted and ignored)
-    and raises as render does for bad ones, and for a keyword render does not take."""
+    and raises as render does for bad ones, and for a keyword render does not take. ``camera`` is
+    taken in the place render takes it, so that ``explain(scene, camera, ...)`` reads as the
+    render call it describes; what is simulated does not depend on it."""
     if not isinstance(scene, Scene):
         raise InputTypeError(f"explain takes a pbrwarp.Scene, got {type(scene).__name__}")
+    if camera is not None and not isinstance(camera, Camera):
+        raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
     unknown = sorted(set(_render_options) - set(inspect.signature(render).parameters))
     if unknown:
         raise InputTypeError(f"explain got {', '.join(map(repr, unknown))}, which render does not take "

@@ -165,3 +165,15 @@ def test_explain_refuses_a_keyword_render_does_not_take():
     with pytest.raises(pw.InputTypeError, match="'sp', which render does not take"):
         pw.explain(scene, sp=4)
     assert "simulated" in pw.explain(scene, camera=None, threads=1, progress=False, seed=3)
+
+
+def test_explain_takes_the_camera_where_render_does():
+    import trimesh
+
+    scene = pw.Scene()
+    scene.add_mesh(trimesh.creation.box())
+    camera = pw.Camera.frame(scene)
+    # explain(scene, camera, ...) reads as the render call it describes
+    assert pw.explain(scene, camera, shadows=False) == pw.explain(scene, shadows=False)
+    with pytest.raises(pw.InputTypeError, match="camera must be a pbrwarp.Camera"):
+        pw.explain(scene, "front")
