@@ -36,6 +36,10 @@ from pbrwarp.kernels.textures import TEXELS_FLOAT, TEXELS_SRGB8, TEXELS_UNORM8, 
 MAX_ELEMENTS = 2**31 - 1
 # glTF's smallest spot cone difference, which keeps cone_scale finite for inner == outer.
 MIN_CONE_COS_DIFFERENCE = 0.001
+# Triangles per leaf of the ray-casting BVH (Warp builds 4 by default). Two keep the boxes of
+# large triangles apart, as in a room whose every wall's box contains the rays' origins:
+# bench/results/traversal.md measures the ray rates.
+BVH_LEAF_SIZE = 2
 
 
 @dataclass(eq=False)
@@ -133,7 +137,7 @@ def _build_geometry(prims) -> _Geometry:
     indices = inverse_permutation(vertex_order)[indices.reshape(-1, 3)[face_order]].astype(np.int32).reshape(-1)
     wp_positions = wp.array(positions[vertex_order], dtype=wp.vec3, device="cpu")
     wp_indices = wp.array(indices, dtype=wp.int32, device="cpu")
-    mesh = wp.Mesh(points=wp_positions, indices=wp_indices)
+    mesh = wp.Mesh(points=wp_positions, indices=wp_indices, bvh_leaf_size=BVH_LEAF_SIZE)
     return _Geometry(
         mesh=mesh,
         positions=wp_positions,
