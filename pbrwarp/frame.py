@@ -59,11 +59,12 @@ class Frame:
     - ``normal``: (H, W, 3) world-space shading normal (mean over the pixel's hit samples), 0 on miss.
     - ``alpha``: (H, W) fraction of the pixel's samples that hit a surface.
     - ``background``: the linear RGB radiance ``rgb`` was composited over.
-    - ``albedo``: (H, W, 3) float32 in [0, 1], the first surface's reflectance (mean over the
-      pixel's samples, 0 on miss), where the integrator records it, else None; what
-      :func:`pbrwarp.denoise` guides the denoiser with.
+    - ``albedo``: (H, W, 3) float32 in [0, 1], the base colour of the first surface each sample
+      meets (the diffuse colour of a dielectric, the normal-incidence reflectance of a metal, as
+      Open Image Denoise asks of its albedo guide), the mean over the pixel's samples with 0 for
+      a miss; what :func:`pbrwarp.denoise` guides the denoiser with.
 
-    ``depth`` and ``normal`` are None for ``render(aovs=False)``.
+    ``depth``, ``normal`` and ``albedo`` are None for ``render(aovs=False)``.
     """
 
     rgb: np.ndarray

@@ -155,7 +155,7 @@ def render(
     - ``width`` x ``height``: the image in pixels (default 800 x 600), each at most 65536.
     - ``spp``: samples per pixel (default 1: pixel centres), multi-jittered, at most 46340. A
       frame holds at most 2^31 - 1 samples (width * height * spp) and 2^28 - 1 in a row
-      (width * spp), and its buffers (32 bytes a pixel, 16 with ``aovs=False``, plus 16 bytes a
+      (width * spp), and its buffers (44 bytes a pixel, 16 with ``aovs=False``, plus 16 bytes a
       sample where primary visibility is rasterized) at most half the memory the process may use
       (less under a ``ulimit``). docs/limits.md says why.
     - ``threads``: pool threads running the launches, 1 to 4 per core (default: one per core);
@@ -171,8 +171,8 @@ def render(
       average to one with more samples.
     - ``progress``: None or True shows a progress bar (if tqdm is installed) for renders longer
       than about a second; False never.
-    - ``aovs``: False skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are
-      then None); default True.
+    - ``aovs``: False skips the depth, normal and albedo outputs (``frame.depth``, ``frame.normal``
+      and ``frame.albedo`` are then None); default True.
     - ``specialize``: False runs the kernel with every effect compiled in, and ray-cast primary
       visibility, instead of the one built for this scene (same image, slower; for comparison).
     - ``quality``: "fast", "balanced" (None, the default), "accurate" or "reference", a preset of
@@ -265,6 +265,7 @@ def render(
     aov_shape = (height, width) if features.aovs else (1, 1)
     out_depth = huge_pages.empty(aov_shape, float)
     out_normal = huge_pages.empty(aov_shape, wp.vec3)
+    out_albedo = huge_pages.empty(aov_shape, wp.vec3)
     bg = wp.vec3(*background)
     seed = int(seed) % (2**31)
     maps = (build_shadow_maps(scene, gpu, shadow_mode(shadows)[1], threads) if features.shadows == "map"
@@ -284,12 +285,12 @@ def render(
     def launch(_):
         wp.launch(kernel, dim=1, device="cpu",
                   inputs=[gpu.data, cam, spp, grid_m, grid_n, seed, rows_taken, ROWS_PER_TAKE, bg,
-                          out_rgb, out_alpha, out_depth, out_normal, vbuffer, maps, buffers, env, dfg])
+                          out_rgb, out_alpha, out_depth, out_normal, out_albedo, vbuffer, maps, buffers, env, dfg])
 
     # compile or load the kernel once, before many threads would all try at once
     load_for_cpu(kernel)
     _run_with_progress(launch, thread_count(threads), rows_taken, height, progress)
-    return _frame(out_rgb, out_alpha, out_depth, out_normal, features.aovs, width, height, background)
+    return _frame(out_rgb, out_alpha, out_depth, out_normal, out_albedo, features.aovs, width, height, background)
 
 
 def _path_options(integrator, max_bounces, first_sample, spp: int, shadows):
@@ -331,29 +332,32 @@ def _render_path(scene: Scene, gpu, features: Features, camera: Camera, width: i
     aov_shape = (height, width) if features.aovs else (1, 1)
     out_depth = huge_pages.empty(aov_shape, float)
     out_normal = huge_pages.empty(aov_shape, wp.vec3)
+    out_albedo = huge_pages.empty(aov_shape, wp.vec3)
     env = _environment_arguments(scene, threads)[0] if features.environment else _no_environment()[0]
     lights = light_table(scene, gpu)
     rows_taken = wp.zeros(WORK_SLOTS, dtype=wp.int32, device="cpu")
     inputs = [gpu.data, cam, spp, first_sample, int(seed) % (2**31), max_bounces, rows_taken, ROWS_PER_TAKE,
-              wp.vec3(*background), out_rgb, out_alpha, out_depth, out_normal, env, lights]
+              wp.vec3(*background), out_rgb, out_alpha, out_depth, out_normal, out_albedo, env, lights]
 
     def launch(_):
         wp.launch(kernel, dim=1, device="cpu", inputs=inputs)
 
     load_for_cpu(kernel)  # compiled or loaded once, before many threads would all try at once
     _run_with_progress(launch, thread_count(threads), rows_taken, height, progress)
-    return _frame(out_rgb, out_alpha, out_depth, out_normal, features.aovs, width, height, background)
+    return _frame(out_rgb, out_alpha, out_depth, out_normal, out_albedo, features.aovs, width, height, background)
 
 
 
-def _frame(out_rgb, out_alpha, out_depth, out_normal, aovs: bool, width: int, height: int, background) -> Frame:
-    """The Frame a render kernel's output arrays hold (depth and normal only with ``aovs``)."""
+def _frame(out_rgb, out_alpha, out_depth, out_normal, out_albedo, aovs: bool, width: int, height: int,
+           background) -> Frame:
+    """The Frame a render kernel's output arrays hold (depth, normal and albedo only with ``aovs``)."""
     return Frame(
         rgb=out_rgb.numpy().reshape(height, width, 3),
         depth=out_depth.numpy() if aovs else None,
         normal=out_normal.numpy().reshape(height, width, 3) if aovs else None,
         alpha=out_alpha.numpy(),
         background=background,
+        albedo=out_albedo.numpy().reshape(height, width, 3) if aovs else None,
     )
 
 def explain(scene: Scene, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
