@@ -63,6 +63,12 @@ class Frame:
       meets (the diffuse colour of a dielectric, the normal-incidence reflectance of a metal, as
       Open Image Denoise asks of its albedo guide), the mean over the pixel's samples with 0 for
       a miss; what :func:`pbrwarp.denoise` guides the denoiser with.
+    - ``spp``: the samples per pixel the frame holds (None for a frame not made by a render).
+    - ``variance``: (H, W, 3) float32, per channel the estimated variance of ``rgb`` (the variance
+      of each pixel's mean over its samples; its square root is the pixel's standard error),
+      ``inf`` where it is not known yet (a single pass); None unless rendered progressively
+      (``render(time_budget=...)``, ``render(target_error=...)``, :class:`pbrwarp.Accumulator`).
+      docs/integrators.md says how it is estimated.
 
     ``depth``, ``normal`` and ``albedo`` are None for ``render(aovs=False)``.
     """
@@ -73,6 +79,24 @@ class Frame:
     alpha: np.ndarray
     background: tuple = (0.0, 0.0, 0.0)
     albedo: np.ndarray | None = None
+    spp: int | None = None
+    variance: np.ndarray | None = None
+
+    def relative_error(self) -> float | None:
+        """The frame's relative standard error: over the pixels a surface covers (``alpha`` > 0;
+        all pixels if none), the mean of sqrt(mean over channels of ``variance``) / (mean over
+        channels of ``rgb`` + eps), with eps 1% of those pixels' mean radiance, so that dark
+        pixels count without dominating. 0.01 means noise of about 1% of each pixel's value; inf
+        while the variance is unknown (one pass), None for a frame without ``variance``."""
+        if self.variance is None:
+            return None
+        covered = self.alpha > 0.0
+        if not covered.any():
+            covered = np.ones_like(covered)
+        mean = self.rgb[covered].astype(np.float64).mean(axis=-1)
+        sigma = np.sqrt(self.variance[covered].astype(np.float64).mean(axis=-1))
+        eps = max(0.01 * float(mean.mean()), float(np.finfo(np.float32).tiny))
+        return float(np.mean(sigma / (mean + eps)))
 
     @property
     def foreground(self) -> np.ndarray:
