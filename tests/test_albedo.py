@@ -99,7 +99,10 @@ def test_denoise_is_guided_by_the_rendered_albedo_and_normal(monkeypatch):
 
     # the module (pw.denoise is its function)
     monkeypatch.setattr(importlib.import_module("pbrwarp.denoise"), "_pyoidn", lambda: FakeOIDN)
-    frame = render(plane_scene(pw.Material(base_color=(0.3, 0.6, 0.2), roughness=0.5)), "path")
-    pw.denoise(frame)
+    frame = render(plane_scene(pw.Material(base_color=(0.3, 0.6, 0.2), roughness=0.5)), "path", target_error=0.5)
+    assert frame.variance is not None
+    denoised = pw.denoise(frame)
     np.testing.assert_array_equal(given["albedo"], frame.albedo)
     np.testing.assert_array_equal(given["normal"], frame.normal)
+    assert denoised.variance is None  # the noisy image's, not the denoised one's
+    assert denoised.spp == frame.spp
