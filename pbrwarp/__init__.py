@@ -46,8 +46,7 @@ from .lights import AreaLighting, DirectionalLight, PointLight, RectLight, Spher
 from .load_limits import LoadLimits
 from .materials import Material
 from .features import Features
-from .progressive import Accumulator
-from .render import explain, render
+from .render import Accumulator, explain, render
 from .scene import Primitive, Scene
 from .shadow_maps import ShadowMap
 from .textures import Texture

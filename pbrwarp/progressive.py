@@ -1,5 +1,5 @@
 """Progressive rendering with the path tracer: samples added in passes, within a call (a time
-budget, a target error) or across calls (:class:`Accumulator`), with each pixel's variance
+budget, a target error) or across calls (:class:`pbrwarp.Accumulator`), with each pixel's variance
 estimated from the spread of the passes' means.
 
 Sample s of a pixel depends only on the seed, the pixel and s (kernels/random.py), so passes of
@@ -10,7 +10,6 @@ docs/integrators.md ("Progressive rendering") says how the variance and the erro
 
 from __future__ import annotations
 
-import inspect
 import math
 import threading
 import time
@@ -20,7 +19,6 @@ import numpy as np
 from . import validate
 from .errors import InputError, InputTypeError
 from .frame import Frame
-from .scene import Scene
 
 # The most samples per pixel one call adds when no time budget bounds it (target_error alone).
 MAX_SAMPLES_PER_CALL = validate.MAX_SPP
@@ -92,50 +90,18 @@ class _Sums:
                      variance=self.variance())
 
 
-class Accumulator:
-    """A path-traced image refined by adding samples, call after call.
+class Accumulation:
+    """Passes of a renderer's samples accumulated into one frame: the engine of
+    :class:`pbrwarp.Accumulator` (which documents the contract) and of progressive renders.
+    ``run`` is pbrwarp.render._renderer's function (spp, first_sample, progress) -> Frame for an
+    image of ``size`` (width, height) pixels, its options checked; ``spp`` the samples of a pass,
+    ``first_sample`` the first pass's first index, ``progress`` the progress option of passes."""
 
-    ``pw.Accumulator(scene, camera=None, width=800, height=600, spp=1, **options)`` takes
-    :func:`pbrwarp.render`'s options (``integrator`` defaults to "path", the only one that can be
-    continued; ``first_sample`` is the index the first pass starts at, default 0; ``progress`` is
-    the default of :meth:`add`'s). ``spp`` is the samples per pixel of each pass. Options are
-    checked, and the kernel chosen, once here. InputError for integrator="direct".
-
-    :meth:`add` renders passes and returns the frame of all samples so far, also kept as
-    :attr:`frame`; :attr:`spp` is their count per pixel. Pass after pass, sample indices continue
-    where the last pass ended, so the frame equals one render of :attr:`spp` samples (up to float
-    rounding), and ``frame.variance`` estimates each pixel's variance from the passes' spread.
-
-    Thread-safe: calls from several threads run one after another (a lock), each adding its
-    passes to the same image. An interrupted pass (Ctrl-C) adds nothing.
-    """
-
-    def __init__(self, scene: Scene, camera=None, width: int = 800, height: int = 600, spp: int = 1,
-                 integrator: str = "path", first_sample: int = 0, progress: bool | None = None, **options):
-        from .render import _renderer, render
-
-        allowed = set(inspect.signature(render).parameters) - {"time_budget", "target_error"}
-        unknown = sorted(set(options) - allowed)
-        if unknown:
-            raise InputTypeError(f"Accumulator got {', '.join(map(repr, unknown))}, which render does not take "
-                                 "(time_budget and target_error are add's)")
-        run = _renderer(scene, camera, width, height, spp, integrator=integrator, first_sample=first_sample,
-                        progressive=True, stacklevel=3, **options)
-        self._setup(run, (width, height), int(spp), int(first_sample), progress)
-
-    @classmethod
-    def from_renderer(cls, run, size: tuple[int, int], spp: int, first_sample: int, progress) -> Accumulator:
-        """An Accumulator over ``run`` (pbrwarp.render._renderer's function) rendering ``size``
-        (width, height) pixels, options checked."""
-        accumulator = cls.__new__(cls)
-        accumulator._setup(run, size, spp, first_sample, progress)
-        return accumulator
-
-    def _setup(self, run, size: tuple[int, int], spp: int, first_sample: int, progress):
+    def __init__(self, run, size: tuple[int, int], spp: int, first_sample: int, progress):
         self._run = run
         self._size = size
-        self._pass_spp = spp
-        self._next_sample = first_sample
+        self._pass_spp = int(spp)
+        self._next_sample = int(first_sample)
         self._progress = progress
         self._sums = None
         self._frame = None

@@ -25,7 +25,7 @@ from .gpu_scene import back_face_culling, upload
 from .ibl import IBL, ibl_for_quality
 from .lights import AreaLighting, area_lighting_for_quality
 from .parallel import run_all, thread_count
-from .progressive import Accumulator, checked_positive
+from .progressive import Accumulation, checked_positive
 from .raster import reused_buffer, visibility_buffer
 from .light_buffers import build as build_light_buffers, no_light_buffers
 from .shadow_maps import build as build_shadow_maps, no_shadow_maps, shadow_mode
@@ -246,8 +246,40 @@ def render(
                     progressive=progressive, stacklevel=3)
     if not progressive:
         return run(spp, first_sample, progress)
-    accumulator = Accumulator.from_renderer(run, (width, height), spp, first_sample, progress)
-    return accumulator.add(time_budget=time_budget, target_error=target_error)
+    return Accumulation(run, (width, height), spp, first_sample, progress).add(time_budget=time_budget,
+                                                                               target_error=target_error)
+
+
+class Accumulator(Accumulation):
+    """A path-traced image refined by adding samples, call after call.
+
+    ``pw.Accumulator(scene, camera=None, width=800, height=600, spp=1, **options)`` takes
+    :func:`render`'s options (``integrator`` defaults to "path", the only one that can be
+    continued; ``first_sample`` is the index the first pass starts at, default 0; ``progress`` is
+    that of :meth:`add`'s passes). ``spp`` is the samples per pixel of each pass. Options are
+    checked, the kernel chosen and warnings given once, here: InputError for integrator="direct",
+    InputTypeError for ``time_budget`` or ``target_error`` (:meth:`add`'s) or an unknown option.
+
+    :meth:`add` (``spp=None``, ``time_budget=None``, ``target_error=None``) renders passes and
+    returns the frame of all samples so far, also kept as :attr:`frame`; :attr:`spp` is their
+    count per pixel. Sample indices continue where the last pass ended, so the frame equals one
+    render of :attr:`spp` samples (up to float rounding), and ``frame.variance`` estimates each
+    pixel's variance from the passes' spread (docs/integrators.md, "Progressive rendering").
+
+    Thread-safe: :meth:`add` calls from several threads run one after another (a lock), each
+    adding its passes to the same image. An interrupted pass (Ctrl-C) adds nothing.
+    """
+
+    def __init__(self, scene: Scene, camera: Camera | None = None, width: int = 800, height: int = 600,
+                 spp: int = 1, integrator: str = "path", first_sample: int = 0, progress: bool | None = None,
+                 **options):
+        unknown = sorted(set(options) - (set(inspect.signature(_renderer).parameters) - {"progressive", "stacklevel"}))
+        if unknown:
+            raise InputTypeError(f"Accumulator got {', '.join(map(repr, unknown))}, which it does not take "
+                                 "(render's options but time_budget and target_error, which are add's)")
+        run = _renderer(scene, camera, width, height, spp, integrator=integrator, first_sample=first_sample,
+                        progressive=True, stacklevel=3, **options)
+        super().__init__(run, (width, height), spp, first_sample, progress)
 
 
 def _renderer(scene, camera, width, height, spp, threads=None, shadows=True, background=None, seed=0, aovs=True,
