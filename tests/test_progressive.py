@@ -183,3 +183,13 @@ def test_bad_options_are_refused_with_advice(box):
         accumulator.add()
     with pytest.raises(InputError, match="spp"):
         accumulator.add(spp=0)
+
+
+def test_frames_without_aovs_accumulate_too(box):
+    scene, camera = box
+    options = {**OPTIONS, "aovs": False}
+    accumulator = pw.Accumulator(scene, camera, spp=2, **options)
+    accumulator.add()
+    frame = accumulator.add()
+    assert frame.depth is None and frame.normal is None and frame.albedo is None
+    np.testing.assert_allclose(frame.rgb, pw.render(scene, camera, spp=4, **options).rgb, rtol=1e-5, atol=1e-7)
