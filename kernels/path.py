@@ -26,6 +26,7 @@ import functools
 
 import warp as wp
 
+from .aovs import denoiser_albedo
 from .bsdf_sampling import pdf_brdf_direction, power_heuristic, sample_brdf_direction, specular_lobe_probability
 from .brdf import brdf_for, max_channel
 from .camera import CameraData, camera_ray_direction
@@ -270,8 +271,8 @@ def path_kernel(features):
     def render_row(scene: SceneData, cam: CameraData, spp: int, first_sample: int, seed: int, max_bounces: int,
                    py: int, background: wp.vec3, out_rgb: wp.array2d(dtype=wp.vec3),
                    out_alpha: wp.array2d(dtype=float), out_depth: wp.array2d(dtype=float),
-                   out_normal: wp.array2d(dtype=wp.vec3), env: EnvironmentData, lights: LightTable,
-                   rows: wp.array(dtype=wp.int32)):
+                   out_normal: wp.array2d(dtype=wp.vec3), out_albedo: wp.array2d(dtype=wp.vec3),
+                   env: EnvironmentData, lights: LightTable, rows: wp.array(dtype=wp.int32)):
         """Row py of the image, path by path, unless rows[STOP] is set: then the row is left at the
         next pixel."""
         for px in range(cam.width):
@@ -280,6 +281,7 @@ def path_kernel(features):
             pixel = py * cam.width + px
             radiance = wp.vec3(0.0)
             normal_sum = wp.vec3(0.0)
+            albedo_sum = wp.vec3(0.0)
             depth = float(RAY_FAR)
             covered = int(0)
             for s in range(spp):
@@ -327,6 +329,7 @@ def path_kernel(features):
                     if wp.static(f.aovs):
                         if bounce == 0:
                             normal_sum = normal_sum + n
+                            albedo_sum = albedo_sum + denoiser_albedo(base_color_at(scene, h, mat, uv))
                             depth = wp.min(depth, wp.length(h.p - cam.eye))
                     if wp.static(f.unlit):
                         if mat.unlit != 0:  # KHR_materials_unlit: its base colour, and no bounce
@@ -397,6 +400,7 @@ def path_kernel(features):
             out_rgb[py, px] = clamp_to_float32_max(radiance * inv_spp + seen_behind)
             out_alpha[py, px] = alpha_out
             if wp.static(f.aovs):
+                out_albedo[py, px] = albedo_sum * inv_spp  # a miss adds 0
                 if covered > 0:
                     out_depth[py, px] = depth
                     out_normal[py, px] = safe_normalize(normal_sum, wp.vec3(0.0))
@@ -419,6 +423,7 @@ def path_kernel(features):
         out_alpha: wp.array2d(dtype=float),
         out_depth: wp.array2d(dtype=float),
         out_normal: wp.array2d(dtype=wp.vec3),
+        out_albedo: wp.array2d(dtype=wp.vec3),
         env: EnvironmentData,
         lights: LightTable,
     ):
@@ -427,7 +432,7 @@ def path_kernel(features):
         while first_row < cam.height and read_counter(rows, STOP) == 0:
             for py in range(first_row, wp.min(first_row + rows_per_take, cam.height)):
                 render_row(scene, cam, spp, first_sample, seed, max_bounces, py, background, out_rgb, out_alpha,
-                           out_depth, out_normal, env, lights, rows)
+                           out_depth, out_normal, out_albedo, env, lights, rows)
             first_row = take_next_item_from(rows, ROWS_TAKEN) * rows_per_take
 
     return path_tile

@@ -8,6 +8,7 @@ import functools
 import warp as wp
 
 from .ambient import ambient_for
+from .aovs import denoiser_albedo
 from .area_lights import (AREA_LIGHT_STREAM, AREA_RECT, AreaLightData, rect_irradiance,
                           rect_representative_point, representative_point_normalization, robust_length,
                           sample_rect_light, sample_sphere_light, sphere_irradiance, sphere_representative_point)
@@ -520,6 +521,7 @@ def render_kernel(features):
         out_alpha: wp.array2d(dtype=float),
         out_depth: wp.array2d(dtype=float),
         out_normal: wp.array2d(dtype=wp.vec3),
+        out_albedo: wp.array2d(dtype=wp.vec3),
         vbuffer: wp.array2d(dtype=wp.uint64),
         maps: ShadowMaps,
         buffers: LightBuffers,
@@ -539,6 +541,7 @@ def render_kernel(features):
             pixel_seed = seed + py * cam.width + px
             radiance = wp.vec3(0.0)
             normal_sum = wp.vec3(0.0)
+            albedo_sum = wp.vec3(0.0)
             hits = int(0)
             covered = float(0.0)
             depth = float(RAY_FAR)
@@ -635,6 +638,7 @@ def render_kernel(features):
                         if hits == hits_before:  # the first surface the sample shows
                             hits = hits + 1
                             normal_sum = normal_sum + n
+                            albedo_sum = albedo_sum + denoiser_albedo(base_color_at(scene, h, mat, uv))
                             depth = wp.min(depth, wp.length(h.p - cam.eye))
                     t = float(0.0)
                     if wp.static(f.transmission):
@@ -733,6 +737,7 @@ def render_kernel(features):
             out_rgb[py, px] = clamp_to_float32_max(radiance * inv_spp + seen_behind)
             out_alpha[py, px] = alpha
             if wp.static(f.aovs):
+                out_albedo[py, px] = albedo_sum * inv_spp  # a miss adds 0
                 if hits > 0:
                     out_depth[py, px] = depth
                     if hits == 1:
@@ -759,6 +764,7 @@ def render_kernel(features):
         out_alpha: wp.array2d(dtype=float),
         out_depth: wp.array2d(dtype=float),
         out_normal: wp.array2d(dtype=wp.vec3),
+        out_albedo: wp.array2d(dtype=wp.vec3),
         vbuffer: wp.array2d(dtype=wp.uint64),
         maps: ShadowMaps,
         buffers: LightBuffers,
@@ -773,7 +779,7 @@ def render_kernel(features):
         while first_row < cam.height and read_counter(rows, STOP) == 0:
             for py in range(first_row, wp.min(first_row + rows_per_take, cam.height)):
                 render_row(scene, cam, spp, grid_m, grid_n, seed, py, background, out_rgb, out_alpha, out_depth,
-                           out_normal, vbuffer, maps, buffers, env, dfg, rows)
+                           out_normal, out_albedo, vbuffer, maps, buffers, env, dfg, rows)
             first_row = take_next_item_from(rows, ROWS_TAKEN) * rows_per_take
 
     return render_tile

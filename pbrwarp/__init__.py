@@ -46,13 +46,13 @@ from .lights import AreaLighting, DirectionalLight, PointLight, RectLight, Spher
 from .load_limits import LoadLimits
 from .materials import Material
 from .features import Features
-from .render import explain, render
+from .render import Accumulator, explain, render
 from .scene import Primitive, Scene
 from .shadow_maps import ShadowMap
 from .textures import Texture
 
 __all__ = [
-    "AreaLighting", "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "IBL", "InputError",
+    "Accumulator", "AreaLighting", "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "IBL", "InputError",
     "InputTypeError", "LoadLimits", "Material", "PbrwarpError", "PointLight", "Primitive", "RectLight", "ResourceError", "Scene", "ShadowMap",
     "SphereLight", "SpotLight",
     "Texture", "check", "denoise", "explain", "render",

@@ -35,7 +35,8 @@ def denoise(frame: Frame, quality: str = "high", guides: bool = True) -> Frame:
       where the frame has them (``normal`` needs ``albedo`` too, as OIDN requires), which keeps
       texture and geometric edges that noise alone would blur; False denoises the colour alone.
 
-    The other outputs are the frame's own. Raises InputTypeError unless ``frame`` is a
+    The other outputs are the frame's own, but for ``variance`` (None: it measured the noise the
+    denoiser removed, and nothing estimates the denoised image's error). Raises InputTypeError unless ``frame`` is a
     :class:`Frame`, InputError for an unknown ``quality`` or a frame with non-finite or negative
     radiance, and ImportError naming the extra to install when pyoidn is missing.
     """
@@ -55,4 +56,4 @@ def denoise(frame: Frame, quality: str = "high", guides: bool = True) -> Frame:
             normal = np.ascontiguousarray(np.clip(frame.normal, -1.0, 1.0), dtype=np.float32)
     rgb = _pyoidn().denoise(colour, albedo, normal, hdr=True, quality=quality)
     # OIDN's network can leave tiny negative values near black; radiance is non-negative
-    return dataclasses.replace(frame, rgb=np.maximum(np.asarray(rgb, dtype=np.float32), 0.0))
+    return dataclasses.replace(frame, rgb=np.maximum(np.asarray(rgb, dtype=np.float32), 0.0), variance=None)

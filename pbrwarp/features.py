@@ -87,7 +87,7 @@ class Features:
     alpha_blend: bool = True
     # occlusion rays (shadow rays, shadowed environment directions) pass alpha cut-outs
     masked_occlusion: bool = True
-    # depth and normal outputs
+    # depth, normal and albedo outputs
     aovs: bool = True
     # primary visibility: "raycast" (a BVH query per camera sample) or "raster" (a visibility buffer)
     visibility: str = "raycast"
@@ -417,7 +417,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     single = sum(1 for m in mats if not m.double_sided or m.alpha_mode == "MASK")
     add("pass_through", single, f"camera rays pass single-sided back faces and alpha cut-outs ({_count(single, 'material')})"
         if single else "no pass-through: every material is double-sided and opaque")
-    add("aovs", aovs, "depth and normal outputs" if aovs else "no depth and normal outputs: aovs=False")
+    add("aovs", aovs, "depth, normal and albedo outputs" if aovs else "no depth, normal or albedo outputs: aovs=False")
     if tracing_paths:
         return path_decisions(decisions, scene, spp, max_bounces)
     return [Decision("integrator", "direct", "direct lighting (integrator='direct'): the light of the lights and "

@@ -59,11 +59,18 @@ class Frame:
     - ``normal``: (H, W, 3) world-space shading normal (mean over the pixel's hit samples), 0 on miss.
     - ``alpha``: (H, W) fraction of the pixel's samples that hit a surface.
     - ``background``: the linear RGB radiance ``rgb`` was composited over.
-    - ``albedo``: (H, W, 3) float32 in [0, 1], the first surface's reflectance (mean over the
-      pixel's samples, 0 on miss), where the integrator records it, else None; what
-      :func:`pbrwarp.denoise` guides the denoiser with.
+    - ``albedo``: (H, W, 3) float32 in [0, 1], the base colour of the first surface each sample
+      meets (the diffuse colour of a dielectric, the normal-incidence reflectance of a metal, as
+      Open Image Denoise asks of its albedo guide), the mean over the pixel's samples with 0 for
+      a miss; what :func:`pbrwarp.denoise` guides the denoiser with.
+    - ``spp``: the samples per pixel the frame holds (None for a frame not made by a render).
+    - ``variance``: (H, W, 3) float32, per channel the estimated variance of ``rgb`` (the variance
+      of each pixel's mean over its samples; its square root is the pixel's standard error),
+      ``inf`` where it is not known yet (a single pass); None unless rendered progressively
+      (``render(time_budget=...)``, ``render(target_error=...)``, :class:`pbrwarp.Accumulator`).
+      docs/integrators.md says how it is estimated.
 
-    ``depth`` and ``normal`` are None for ``render(aovs=False)``.
+    ``depth``, ``normal`` and ``albedo`` are None for ``render(aovs=False)``.
     """
 
     rgb: np.ndarray
@@ -72,6 +79,24 @@ class Frame:
     alpha: np.ndarray
     background: tuple = (0.0, 0.0, 0.0)
     albedo: np.ndarray | None = None
+    spp: int | None = None
+    variance: np.ndarray | None = None
+
+    def relative_error(self) -> float | None:
+        """The frame's relative standard error: over the pixels a surface covers (``alpha`` > 0;
+        all pixels if none), the mean of sqrt(mean over channels of ``variance``) / (mean over
+        channels of ``rgb`` + eps), with eps 1% of those pixels' mean radiance, so that dark
+        pixels count without dominating. 0.01 means noise of about 1% of each pixel's value; inf
+        while the variance is unknown (one pass), None for a frame without ``variance``."""
+        if self.variance is None:
+            return None
+        covered = self.alpha > 0.0
+        if not covered.any():
+            covered = np.ones_like(covered)
+        mean = self.rgb[covered].astype(np.float64).mean(axis=-1)
+        sigma = np.sqrt(self.variance[covered].astype(np.float64).mean(axis=-1))
+        eps = max(0.01 * float(mean.mean()), float(np.finfo(np.float32).tiny))
+        return float(np.mean(sigma / (mean + eps)))
 
     @property
     def foreground(self) -> np.ndarray:

@@ -25,6 +25,7 @@ from .gpu_scene import back_face_culling, upload
 from .ibl import IBL, ibl_for_quality
 from .lights import AreaLighting, area_lighting_for_quality
 from .parallel import run_all, thread_count
+from .progressive import Accumulation, checked_positive
 from .raster import reused_buffer, visibility_buffer
 from .light_buffers import build as build_light_buffers, no_light_buffers
 from .shadow_maps import build as build_shadow_maps, no_shadow_maps, shadow_mode
@@ -147,6 +148,8 @@ def render(
     max_bounces: int | None = None,
     first_sample: int = 0,
     area_lighting: AreaLighting | None = None,
+    time_budget: float | None = None,
+    target_error: float | None = None,
 ) -> Frame:
     """Render ``scene`` seen by ``camera`` into a :class:`Frame` of linear radiance.
 
@@ -155,7 +158,7 @@ def render(
     - ``width`` x ``height``: the image in pixels (default 800 x 600), each at most 65536.
     - ``spp``: samples per pixel (default 1: pixel centres), multi-jittered, at most 46340. A
       frame holds at most 2^31 - 1 samples (width * height * spp) and 2^28 - 1 in a row
-      (width * spp), and its buffers (32 bytes a pixel, 16 with ``aovs=False``, plus 16 bytes a
+      (width * spp), and its buffers (44 bytes a pixel, 16 with ``aovs=False``, plus 16 bytes a
       sample where primary visibility is rasterized) at most half the memory the process may use
       (less under a ``ulimit``). docs/limits.md says why.
     - ``threads``: pool threads running the launches, 1 to 4 per core (default: one per core);
@@ -171,8 +174,8 @@ def render(
       average to one with more samples.
     - ``progress``: None or True shows a progress bar (if tqdm is installed) for renders longer
       than about a second; False never.
-    - ``aovs``: False skips the depth and normal outputs (``frame.depth`` and ``frame.normal`` are
-      then None); default True.
+    - ``aovs``: False skips the depth, normal and albedo outputs (``frame.depth``, ``frame.normal``
+      and ``frame.albedo`` are then None); default True.
     - ``specialize``: False runs the kernel with every effect compiled in, and ray-cast primary
       visibility, instead of the one built for this scene (same image, slower; for comparison).
     - ``quality``: "fast", "balanced" (None, the default), "accurate" or "reference", a preset of
@@ -212,15 +215,83 @@ def render(
       the representative point (the default; noise-free, hard shadows) or Monte Carlo with N
       shadowed samples per light and hit (soft shadows; the "reference" preset's, with 64).
       docs/lighting.md says what each costs.
+    - ``time_budget``: seconds (above 0), with ``integrator="path"``: render progressively, in
+      passes of ``spp`` samples (continuing each other, from ``first_sample``), adding passes
+      while another, at the mean duration of those so far, fits in the budget; the first pass
+      always completes. The frame's ``spp`` says how many samples it holds, its ``variance`` how
+      noisy each pixel still is (docs/integrators.md, "Progressive rendering"). Default None.
+    - ``target_error``: with ``integrator="path"``, render in passes of ``spp`` samples as for
+      ``time_budget``, and stop once ``frame.relative_error()`` (the mean relative standard error
+      of the covered pixels) is at most this; without a ``time_budget``, at the latest after
+      pbrwarp.progressive.MAX_SAMPLES_PER_CALL samples. Default None. :class:`Accumulator`
+      accumulates across calls.
+
+    Without ``time_budget`` and ``target_error`` a render holds exactly ``spp`` samples per pixel
+    (``frame.spp``) and has no ``variance``.
 
     Raises InputTypeError for a scene, camera or option of the wrong type, InputError for a value
-    out of range, a scene without meshes or a frame past a limit (before anything is allocated),
+    out of range, a scene without meshes, a frame past a limit (before anything is allocated) or
+    a time budget or target error with the direct integrator,
     ResourceError when the system refuses a thread. A KeyboardInterrupt (Ctrl-C) stops every
     launch of the render at once and propagates; the next render in the process is unaffected.
     :func:`explain` says what is simulated; the scene's derived data (uploaded geometry, light
     buffers, ...) is kept in ``scene.cache`` for the next render, and a ``Scene`` may be rendered
     from several threads at once.
     """
+    time_budget = checked_positive(time_budget, "time_budget")
+    target_error = checked_positive(target_error, "target_error")
+    progressive = time_budget is not None or target_error is not None
+    run = _renderer(scene, camera, width, height, spp, threads, shadows, background, seed, aovs, specialize, quality,
+                    brdf, visibility, ibl, texture_filter, integrator, max_bounces, first_sample, area_lighting,
+                    progressive=progressive, stacklevel=3)
+    if not progressive:
+        return run(spp, first_sample, progress)
+    return Accumulation(run, (width, height), spp, first_sample, progress).add(time_budget=time_budget,
+                                                                               target_error=target_error)
+
+
+class Accumulator(Accumulation):
+    """A path-traced image refined by adding samples, call after call.
+
+    ``pw.Accumulator(scene, camera=None, width=800, height=600, spp=1, **options)`` takes
+    :func:`render`'s options (``integrator`` defaults to "path", the only one that can be
+    continued; ``first_sample`` is the index the first pass starts at, default 0; ``progress`` is
+    that of :meth:`add`'s passes). ``spp`` is the samples per pixel of each pass. Options are
+    checked, the kernel chosen and warnings given once, here: InputError for integrator="direct",
+    InputTypeError for ``time_budget`` or ``target_error`` (:meth:`add`'s) or an unknown option.
+
+    :meth:`add` (``spp=None``, ``time_budget=None``, ``target_error=None``) renders passes and
+    returns the frame of all samples so far, also kept as :attr:`frame`; :attr:`spp` is their
+    count per pixel. Sample indices continue where the last pass ended, so the frame equals one
+    render of :attr:`spp` samples (up to float rounding), and ``frame.variance`` estimates each
+    pixel's variance from the passes' spread (docs/integrators.md, "Progressive rendering").
+
+    Thread-safe: :meth:`add` calls from several threads run one after another (a lock), each
+    adding its passes to the same image. An interrupted pass (Ctrl-C) adds nothing.
+    """
+
+    def __init__(self, scene: Scene, camera: Camera | None = None, width: int = 800, height: int = 600,
+                 spp: int = 1, integrator: str = "path", first_sample: int = 0, progress: bool | None = None,
+                 **options):
+        unknown = sorted(set(options) - (set(inspect.signature(_renderer).parameters) - {"progressive", "stacklevel"}))
+        if unknown:
+            raise InputTypeError(f"Accumulator got {', '.join(map(repr, unknown))}, which it does not take "
+                                 "(render's options but time_budget and target_error, which are add's)")
+        run = _renderer(scene, camera, width, height, spp, integrator=integrator, first_sample=first_sample,
+                        progressive=True, stacklevel=3, **options)
+        super().__init__(run, (width, height), spp, first_sample, progress)
+
+
+def _renderer(scene, camera, width, height, spp, threads=None, shadows=True, background=None, seed=0, aovs=True,
+              specialize=True, quality=None, brdf=None, visibility="auto", ibl=None, texture_filter="trilinear",
+              integrator="direct", max_bounces=None, first_sample=0, area_lighting=None, progressive=False,
+              stacklevel=2):
+    """render's options (but ``progress``, ``time_budget`` and ``target_error``) checked, its
+    kernel's features decided and its warnings given (``stacklevel`` pointing at the caller's
+    caller): a function (spp, first_sample, progress) -> Frame rendering those samples. The path
+    tracer's renders any count from any first sample (checked by the caller); the direct
+    integrator's the ``spp`` given only. ``progressive`` asks for the path tracer (InputError
+    for the direct integrator, whose samples are stratified per render)."""
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
     width, height, spp = validate.render_size(width, height, spp, aovs=bool(aovs),
@@ -237,6 +308,8 @@ def render(
         raise InputTypeError(f"camera must be a pbrwarp.Camera, got {type(camera).__name__}")
 
     path, max_bounces, first_sample = _path_options(integrator, max_bounces, first_sample, spp, shadows)
+    if progressive and not path:
+        raise _progressive_needs_path()
 
     ibl = ibl_for_quality(quality, ibl)
     brdf = brdf_for_quality(quality, brdf)
@@ -253,9 +326,17 @@ def render(
         unsimulated = path_unsimulated(decide(scene, gpu, **{**options, "integrator": "direct"}), scene)
         if unsimulated:
             warnings.warn(f"the path tracer does not simulate {'; '.join(unsimulated)} yet; integrator='direct' "
-                          "renders them", stacklevel=2)
-        return _render_path(scene, gpu, path_features(features), camera, width, height, spp, first_sample, seed,
-                            max_bounces, threads, background, progress)
+                          "renders them", stacklevel=stacklevel)
+        return functools.partial(_render_path, scene, gpu, path_features(features), camera, width, height, seed,
+                                 max_bounces, threads, background)
+    return functools.partial(_render_direct, scene, gpu, features, camera, width, height, seed, threads, background,
+                             shadows)
+
+
+def _render_direct(scene: Scene, gpu, features: Features, camera: Camera, width: int, height: int, seed, threads,
+                   background, shadows, spp: int, first_sample: int, progress) -> Frame:
+    """render(..., integrator="direct") once its options are checked and its features decided
+    (first_sample is 0)."""
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
@@ -265,6 +346,7 @@ def render(
     aov_shape = (height, width) if features.aovs else (1, 1)
     out_depth = huge_pages.empty(aov_shape, float)
     out_normal = huge_pages.empty(aov_shape, wp.vec3)
+    out_albedo = huge_pages.empty(aov_shape, wp.vec3)
     bg = wp.vec3(*background)
     seed = int(seed) % (2**31)
     maps = (build_shadow_maps(scene, gpu, shadow_mode(shadows)[1], threads) if features.shadows == "map"
@@ -284,12 +366,19 @@ def render(
     def launch(_):
         wp.launch(kernel, dim=1, device="cpu",
                   inputs=[gpu.data, cam, spp, grid_m, grid_n, seed, rows_taken, ROWS_PER_TAKE, bg,
-                          out_rgb, out_alpha, out_depth, out_normal, vbuffer, maps, buffers, env, dfg])
+                          out_rgb, out_alpha, out_depth, out_normal, out_albedo, vbuffer, maps, buffers, env, dfg])
 
     # compile or load the kernel once, before many threads would all try at once
     load_for_cpu(kernel)
     _run_with_progress(launch, thread_count(threads), rows_taken, height, progress)
-    return _frame(out_rgb, out_alpha, out_depth, out_normal, features.aovs, width, height, background)
+    return _frame(out_rgb, out_alpha, out_depth, out_normal, out_albedo, features.aovs, width, height, background,
+                  spp)
+
+
+def _progressive_needs_path() -> InputError:
+    return InputError("progressive rendering (time_budget, target_error, pw.Accumulator) needs integrator='path': "
+                      "the direct integrator's samples are stratified per render, so a render cannot be continued; "
+                      "pass integrator='path', or average direct renders of different seeds")
 
 
 def _path_options(integrator, max_bounces, first_sample, spp: int, shadows):
@@ -321,8 +410,8 @@ def _path_options(integrator, max_bounces, first_sample, spp: int, shadows):
     return True, int(max_bounces), int(first_sample)
 
 
-def _render_path(scene: Scene, gpu, features: Features, camera: Camera, width: int, height: int, spp: int,
-                 first_sample: int, seed, max_bounces: int, threads, background, progress) -> Frame:
+def _render_path(scene: Scene, gpu, features: Features, camera: Camera, width: int, height: int, seed,
+                 max_bounces: int, threads, background, spp: int, first_sample: int, progress) -> Frame:
     """render(..., integrator="path") once its options are checked and its features decided."""
     kernel = path_kernel(features)
     cam = _camera_data(camera, width, height)
@@ -331,29 +420,34 @@ def _render_path(scene: Scene, gpu, features: Features, camera: Camera, width: i
     aov_shape = (height, width) if features.aovs else (1, 1)
     out_depth = huge_pages.empty(aov_shape, float)
     out_normal = huge_pages.empty(aov_shape, wp.vec3)
+    out_albedo = huge_pages.empty(aov_shape, wp.vec3)
     env = _environment_arguments(scene, threads)[0] if features.environment else _no_environment()[0]
     lights = light_table(scene, gpu)
     rows_taken = wp.zeros(WORK_SLOTS, dtype=wp.int32, device="cpu")
     inputs = [gpu.data, cam, spp, first_sample, int(seed) % (2**31), max_bounces, rows_taken, ROWS_PER_TAKE,
-              wp.vec3(*background), out_rgb, out_alpha, out_depth, out_normal, env, lights]
+              wp.vec3(*background), out_rgb, out_alpha, out_depth, out_normal, out_albedo, env, lights]
 
     def launch(_):
         wp.launch(kernel, dim=1, device="cpu", inputs=inputs)
 
     load_for_cpu(kernel)  # compiled or loaded once, before many threads would all try at once
     _run_with_progress(launch, thread_count(threads), rows_taken, height, progress)
-    return _frame(out_rgb, out_alpha, out_depth, out_normal, features.aovs, width, height, background)
+    return _frame(out_rgb, out_alpha, out_depth, out_normal, out_albedo, features.aovs, width, height, background,
+                  spp)
 
 
 
-def _frame(out_rgb, out_alpha, out_depth, out_normal, aovs: bool, width: int, height: int, background) -> Frame:
-    """The Frame a render kernel's output arrays hold (depth and normal only with ``aovs``)."""
+def _frame(out_rgb, out_alpha, out_depth, out_normal, out_albedo, aovs: bool, width: int, height: int,
+           background, spp: int) -> Frame:
+    """The Frame a render kernel's output arrays hold (depth, normal and albedo only with ``aovs``)."""
     return Frame(
         rgb=out_rgb.numpy().reshape(height, width, 3),
         depth=out_depth.numpy() if aovs else None,
         normal=out_normal.numpy().reshape(height, width, 3) if aovs else None,
         alpha=out_alpha.numpy(),
         background=background,
+        albedo=out_albedo.numpy().reshape(height, width, 3) if aovs else None,
+        spp=spp,
     )
 
 def explain(scene: Scene, camera: Camera | None = None, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
@@ -380,7 +474,10 @@ def explain(scene: Scene, camera: Camera | None = None, shadows=True, spp: int =
                                               rasterized=bool(_render_options.get("specialize", True))
                                               and visibility != "raycast")
     samples = width * height * spp
-    _, bounces, _ = _path_options(integrator, max_bounces, _render_options.get("first_sample", 0), spp, shadows)
+    path, bounces, _ = _path_options(integrator, max_bounces, _render_options.get("first_sample", 0), spp, shadows)
+    progressive = [checked_positive(_render_options.get(name), name) for name in ("time_budget", "target_error")]
+    if not path and progressive != [None, None]:
+        raise _progressive_needs_path()
     return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf),
                            visibility=visibility, samples=samples, ibl=ibl_for_quality(quality, ibl),
                            background_given=background is not None, texture_filter=texture_filter,

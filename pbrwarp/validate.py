@@ -126,10 +126,10 @@ MAX_SAMPLES = 2**31 - 1
 MAX_ROW_SAMPLES = (2**31 - 1) // 8
 # Share of the machine's memory one frame's buffers may take.
 MEMORY_SHARE = 0.5
-# Bytes a frame keeps per pixel (radiance and coverage; depth and normal with AOVs) and per
+# Bytes a frame keeps per pixel (radiance and coverage; depth, normal and albedo with AOVs) and per
 # sample where primary visibility is rasterized (the visibility buffer and the sample positions).
 PIXEL_BYTES = 12 + 4
-AOV_PIXEL_BYTES = 4 + 12
+AOV_PIXEL_BYTES = 4 + 12 + 12
 SAMPLE_BYTES = 8 + 8
 
 

@@ -78,7 +78,7 @@ def test_a_frame_at_the_spp_limit_renders():
 def test_frame_bytes_counts_the_buffers_a_render_allocates():
     width, height, spp = 7, 5, 6
     frame = pw.render(simple_scene(), head_on_camera(), width=width, height=height, progress=False)
-    outputs = frame.rgb.nbytes + frame.alpha.nbytes + frame.depth.nbytes + frame.normal.nbytes
+    outputs = frame.rgb.nbytes + frame.alpha.nbytes + frame.depth.nbytes + frame.normal.nbytes + frame.albedo.nbytes
     assert validate.frame_bytes(width, height, 1, aovs=True, rasterized=False) == outputs
     assert validate.frame_bytes(width, height, 1, aovs=False, rasterized=False) == frame.rgb.nbytes + frame.alpha.nbytes
     grid_m, grid_n = _stratification_grid(spp)
