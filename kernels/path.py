@@ -210,7 +210,8 @@ def path_kernel(features):
         each weighted by the power heuristic against next-event estimation's density at p, and
         by the share of thin transmissive walls on the way (transmittance, as shadow rays)."""
         total = wp.vec3(0.0)
-        for k in range(scene.num_area_lights):
+        # the table holds every area light, unless none of the scene's lights emits (then it is empty)
+        for k in range(wp.min(scene.num_area_lights, lights.area)):
             light = scene.area_lights[k]
             t = area_light_distance(light, origin, d)
             if t > 0.0 and t < reach:

@@ -331,3 +331,16 @@ def test_ray_rect_against_float64_including_grazing_and_behind():
     assert both.sum() > 500 and np.any(both[-200:])
     np.testing.assert_allclose(t[both], expected[both], rtol=1e-4)
     assert np.all(t[height <= 0] == -1.0)  # behind the light: its back emits nothing
+
+
+def test_area_lights_that_emit_nothing_leave_the_table_empty_and_the_image_black():
+    """Lights of zero intensity get no table entry (the table is empty): BSDF-sampled rays that
+    meet them must not read entries that do not exist."""
+    scene = pw.Scene()
+    scene.add_mesh(quad(size=4.0))
+    for z in (1.0, 2.0, 3.0):
+        scene.add_light(pw.SphereLight(position=(0.0, 0.0, z), radius=0.3, intensity=0.0))
+    scene.add_light(pw.RectLight(position=(0.0, 0.0, 1.5), edge_u=(1.0, 0.0, 0.0), edge_v=(0.0, -1.0, 0.0),
+                                 intensity=0.0))
+    frame = pw.render(scene, DOWN, width=8, height=8, spp=4, integrator="path", max_bounces=2, progress=False)
+    assert np.all(frame.rgb == 0.0)
