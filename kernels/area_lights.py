@@ -11,6 +11,8 @@ resolve from there). ``pdf_*`` evaluates that density for any direction, 0 off t
 multiple importance sampling.
 """
 
+import functools
+
 import warp as wp
 
 from .direction_sampling import orthonormal_basis
@@ -119,6 +121,32 @@ def pdf_sphere_light(light: AreaLightData, p: wp.vec3, direction: wp.vec3) -> fl
     if wp.dot(c, c) > sin_sq_max:
         return 0.0
     return 1.0 / (2.0 * PI * one_minus_cos_max)
+
+
+@wp.func
+def ray_sphere(light: AreaLightData, p: wp.vec3, direction: wp.vec3) -> float:
+    """The distance t > 0 at which the ray p + t direction (unit direction) meets the sphere's
+    outside, -1 where it misses it, runs away from it, or starts inside or on it (the sphere emits
+    outwards only). Robust as pbrt-v4's sphere test (section 6.8.1): the squared distance of the
+    ray from the centre as (r - l)(r + l) of the perpendicular length l, and the near root in the
+    form t = (d - r)(d + r) / (-b + sqrt(disc)), neither cancelling at grazing rays nor squaring
+    distances that would overflow float32."""
+    to_p = p - light.position
+    d = robust_length(to_p)
+    r = light.radius
+    if not (d > r and d < FLOAT32_MAX):
+        return -1.0
+    b = wp.dot(to_p, direction)  # -(distance along the ray to the point nearest the centre)
+    if not (b < 0.0):
+        return -1.0
+    l = robust_length(to_p - direction * b)  # the ray's distance from the centre
+    if not (l <= r):
+        return -1.0
+    q = -b + wp.sqrt(wp.max((r - l) * (r + l), 0.0))
+    t = (d - r) * ((d + r) / q)
+    if not (t > 0.0 and t < FLOAT32_MAX):
+        return -1.0
+    return t
 
 
 @wp.func
@@ -326,6 +354,16 @@ def rect_hit(light: AreaLightData, p: wp.vec3, direction: wp.vec3):
 
 
 @wp.func
+def ray_rect(light: AreaLightData, p: wp.vec3, direction: wp.vec3) -> float:
+    """The distance t > 0 at which the ray p + t direction (unit direction) meets the rectangle's
+    lit face, -1 where it does not (behind it, parallel to it, past its edges)."""
+    hit, t, cos_light = rect_hit(light, p, direction)
+    if not hit:
+        return -1.0
+    return t
+
+
+@wp.func
 def pdf_rect_light(light: AreaLightData, p: wp.vec3, direction: wp.vec3) -> float:
     """The solid-angle density of sample_rect_light from p at the unit ``direction``: where the
     ray meets the rectangle's lit face, 1 / its solid angle, or t^2 / (area cos(theta_l)) at
@@ -412,3 +450,48 @@ def rect_representative_point(light: AreaLightData, p: wp.vec3, r: wp.vec3) -> w
     su = wp.clamp(wp.dot(local, light.edge_u) / wp.dot(light.edge_u, light.edge_u), -0.5, 0.5)
     sv = wp.clamp(wp.dot(local, light.edge_v) / wp.dot(light.edge_v, light.edge_v), -0.5, 0.5)
     return to_centre + light.edge_u * su + light.edge_v * sv
+
+
+# ---------------------------------------------------------------------------------- by kind
+
+
+@functools.cache
+def area_light_kinds(spheres: bool, rects: bool):
+    """(sample, pdf, intersect): sample_*_light, pdf_*_light and ray_* dispatched on a light's
+    kind, for kernels holding sphere lights, rectangle lights or both (at least one); the code of
+    an absent kind is not generated."""
+
+    @wp.func
+    def sample(light: AreaLightData, p: wp.vec3, u: wp.vec2):
+        if wp.static(spheres and rects):
+            if light.kind == AREA_RECT:
+                return sample_rect_light(light, p, u)
+            return sample_sphere_light(light, p, u)
+        elif wp.static(spheres):
+            return sample_sphere_light(light, p, u)
+        else:
+            return sample_rect_light(light, p, u)
+
+    @wp.func
+    def pdf(light: AreaLightData, p: wp.vec3, direction: wp.vec3) -> float:
+        if wp.static(spheres and rects):
+            if light.kind == AREA_RECT:
+                return pdf_rect_light(light, p, direction)
+            return pdf_sphere_light(light, p, direction)
+        elif wp.static(spheres):
+            return pdf_sphere_light(light, p, direction)
+        else:
+            return pdf_rect_light(light, p, direction)
+
+    @wp.func
+    def intersect(light: AreaLightData, p: wp.vec3, direction: wp.vec3) -> float:
+        if wp.static(spheres and rects):
+            if light.kind == AREA_RECT:
+                return ray_rect(light, p, direction)
+            return ray_sphere(light, p, direction)
+        elif wp.static(spheres):
+            return ray_sphere(light, p, direction)
+        else:
+            return ray_rect(light, p, direction)
+
+    return sample, pdf, intersect

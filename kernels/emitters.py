@@ -1,6 +1,7 @@
-"""Lights as the path tracer samples them: one table over the punctual lights and the emissive
-triangles, a light chosen from it by a discrete distribution, and a point drawn uniformly on a
-chosen triangle, with the solid-angle pdf multiple importance sampling needs.
+"""Lights as the path tracer samples them: one table over the punctual lights, the area lights and
+the emissive triangles, beside the environment; a light chosen by a discrete distribution, and a
+point drawn uniformly on a chosen triangle, with the solid-angle pdf multiple importance sampling
+needs.
 
 pbrwarp/emitters.py builds the table (which triangles emit, each entry's probability).
 """
@@ -12,17 +13,21 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.struct
 class LightTable:
-    # cumulative probabilities of the entries: the punctual lights (scene.lights, in order), then
-    # the emissive triangles; the last is exactly 1
+    # cumulative probabilities of the entries: the punctual lights (scene.lights, in order), the
+    # area lights (scene.area_lights, in order), then the emissive triangles; the last is exactly 1
     cdf: wp.array(dtype=float)
     pmf: wp.array(dtype=float)
-    # the triangle of each entry past the punctual lights
+    # the triangle of each entry past the punctual and area lights
     face: wp.array(dtype=wp.int32)
     # per triangle of the scene, the probability its entry is chosen (0 for triangles that emit
     # nothing): the light-sampling pdf of a point a BSDF-sampled ray hits
     face_pmf: wp.array(dtype=float)
     count: int
     punctual: int
+    area: int
+    # the probability of choosing the environment rather than an entry (whose probabilities are
+    # then scaled by 1 - environment): 0 where the environment lights nothing
+    environment: float
 
 
 @wp.func
@@ -38,6 +43,20 @@ def choose_light(table: LightTable, u: float) -> int:
         else:
             low = middle + 1
     return low
+
+
+@wp.func
+def choose_light_or_environment(table: LightTable, u: float):
+    """(entry, probability of the choice): -1 for the environment, chosen with probability
+    table.environment, else choose_light on u rescaled to [0, 1); entry -2 (probability 0) where
+    there is nothing to choose."""
+    if u < table.environment:
+        return -1, table.environment
+    if table.count == 0:
+        return -2, 0.0
+    rest = 1.0 - table.environment
+    i = choose_light(table, wp.min((u - table.environment) / rest, 0.99999994))
+    return i, table.pmf[i] * rest
 
 
 @wp.func

@@ -7,10 +7,16 @@ reaches it adds
   sampled ray found it (full weight for the camera ray);
 - next-event estimation: one light chosen from the light table (kernels/emitters.py) by its
   estimated power; a punctual light is a delta light (sampled only this way, no MIS), an emissive
-  triangle gets a point uniform on its area, weighted against BSDF sampling;
+  triangle gets a point uniform on its area, a sphere or rectangle light a direction uniform in
+  the solid angle it subtends (kernels/area_lights.py), the environment a direction by its
+  luminance (kernels/environment_sampling.py), each weighted against BSDF sampling;
 then continues along a direction drawn from the BRDF's lobe mixture (kernels/bsdf_sampling.py),
-its throughput multiplied by f cos / pdf. A ray that escapes adds the environment's radiance
-(BSDF-sampled only, at full weight). Smooth thin transmissive walls are passed as null events,
+its throughput multiplied by f cos / pdf. That ray adds the radiance of every sphere and
+rectangle light it meets before the surface it reaches (area lights are not in the mesh and, as
+in the direct kernel, block no light: the path goes on through them), and a ray that escapes
+adds the environment's, each weighted by the power heuristic against light sampling (camera
+rays do not see area lights, as in the direct kernel, and see the environment at full weight).
+Smooth thin transmissive walls are passed as null events,
 with the probability of the share they transmit (find_surface), and shadow rays pass them tinted
 by that share (transmittance). After three bounces, Russian roulette continues a path with
 probability q = min(max throughput channel, 0.95), dividing its throughput by q. Every random
@@ -27,10 +33,12 @@ import functools
 import warp as wp
 
 from .aovs import denoiser_albedo
+from .area_lights import area_light_kinds
 from .bsdf_sampling import pdf_brdf_direction, power_heuristic, sample_brdf_direction, specular_lobe_probability
 from .brdf import brdf_for, max_channel
 from .camera import CameraData, camera_ray_direction
-from .emitters import LightTable, area_to_solid_angle, choose_light, sample_triangle, triangle_area
+from .emitters import LightTable, area_to_solid_angle, choose_light_or_environment, sample_triangle, triangle_area
+from .environment_sampling import pdf_environment, sample_environment
 from .ibl import EnvironmentData, environment_radiance
 from .lights import light_sampler
 from .material_inputs import material_lookups
@@ -76,6 +84,11 @@ def path_kernel(features):
     brdf = brdf_for(f.diffuse, f.specular, **dataclasses.asdict(f.brdf), anisotropic=f.anisotropy,
                     iridescent=f.iridescence)
     punctual = f.point_lights or f.directional_lights or f.spot_lights
+    area = f.sphere_lights or f.rect_lights
+    if area:
+        sample_area_light, pdf_area_light, area_light_distance = area_light_kinds(f.sphere_lights, f.rect_lights)
+    # the environment is a light where it lights the scene (not where it is only the background)
+    environment_lights = bool(f.environment)
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
     scattering = f.diffuse or f.specular
     hit_uv, alpha_at, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion,
@@ -187,21 +200,58 @@ def path_kernel(features):
         if area <= 0.0:
             return 0.0
         to_hit = h.p - from_point
-        return area_to_solid_angle(lights.face_pmf[h.face] / area, wp.dot(to_hit, to_hit), wp.dot(h.ng, d))
+        pmf = lights.face_pmf[h.face] * (1.0 - lights.environment)
+        return area_to_solid_angle(pmf / area, wp.dot(to_hit, to_hit), wp.dot(h.ng, d))
 
     @wp.func
-    def next_event(scene: SceneData, lights: LightTable, h: SurfaceHit, n: wp.vec3, v: wp.vec3, base: wp.vec3,
+    def area_lights_met(scene: SceneData, lights: LightTable, p: wp.vec3, origin: wp.vec3, d: wp.vec3, reach: float,
+                        bsdf_pdf: float) -> wp.vec3:
+        """The radiance of the area lights the BSDF-sampled ray from ``origin`` (offset from the
+        vertex p it was sampled at) along ``d`` meets before ``reach`` (the surface it reaches),
+        each weighted by the power heuristic against next-event estimation's density at p, and
+        by the share of thin transmissive walls on the way (transmittance, as shadow rays)."""
+        total = wp.vec3(0.0)
+        # the table holds every area light, unless none of the scene's lights emits (then it is empty)
+        for k in range(wp.min(scene.num_area_lights, lights.area)):
+            light = scene.area_lights[k]
+            t = area_light_distance(light, origin, d)
+            if t > 0.0 and t < reach:
+                passed = wp.vec3(1.0)
+                if wp.static(f.transmission):
+                    passed = transmittance(scene, origin, d, t)
+                light_pdf = lights.pmf[lights.punctual + k] * (1.0 - lights.environment) * pdf_area_light(light, p, d)
+                total = total + wp.cw_mul(light.radiance, passed) * power_heuristic(bsdf_pdf, light_pdf)
+        return total
+
+    @wp.func
+    def next_event(scene: SceneData, lights: LightTable, env: EnvironmentData, h: SurfaceHit, n: wp.vec3, v: wp.vec3, base: wp.vec3,
                    metallic: float, roughness: float, specular: float, eta: wp.vec3, kappa: wp.vec3,
                    f0_dielectric: wp.vec3, aniso_t: wp.vec3, anisotropy: float, thin_film: wp.vec3, alpha: float,
                    p_specular: float, key: wp.uint32, dim: int) -> wp.vec3:
-        """Radiance reflected towards v of one light chosen from the table, divided by the
-        probability of that choice (and, for an emitter's point, by its pdf, MIS-weighted against
-        BSDF sampling); 0 where the light is below the surface or blocked."""
-        if lights.count == 0:
-            return wp.vec3(0.0)
-        i = choose_light(lights, uniform(key, dim + LIGHT_CHOICE))
-        pmf = lights.pmf[i]
+        """Radiance reflected towards v of one light chosen from the table or the environment,
+        divided by the probability of that choice (and, for all but punctual lights, by the
+        sample's pdf, MIS-weighted against BSDF sampling); 0 where the light is below the surface
+        or blocked."""
+        i, pmf = choose_light_or_environment(lights, uniform(key, dim + LIGHT_CHOICE))
         if pmf <= 0.0:
+            return wp.vec3(0.0)
+        if wp.static(environment_lights):
+            if i == -1:
+                l, env_pdf = sample_environment(env.sampler, env, uniform2(key, dim + LIGHT_POINT))
+                pdf = pmf * env_pdf
+                if not (pdf > 0.0) or wp.dot(h.ng, l) <= 0.0 or wp.dot(n, l) <= 0.0:
+                    return wp.vec3(0.0)
+                le = environment_radiance(env, l)
+                if max_channel(le) <= 0.0:
+                    return wp.vec3(0.0)
+                passed = transmittance(scene, offset_ray_origin(h.p, h.p_error, h.ng, l), l, RAY_FAR)
+                if max_channel(passed) <= 0.0:
+                    return wp.vec3(0.0)
+                fr = brdf(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
+                          thin_film)
+                weight = power_heuristic(pdf, pdf_brdf_direction(n, v, l, alpha, p_specular))
+                return wp.cw_mul(wp.cw_mul(fr, le), passed) * (wp.dot(n, l) * weight / pdf)
+        if i < 0:
             return wp.vec3(0.0)
         if wp.static(punctual):
             if i < lights.punctual:
@@ -218,8 +268,25 @@ def path_kernel(features):
                 fr = brdf(n, v, ls.to_light, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t,
                           anisotropy, thin_film)
                 return wp.cw_mul(wp.cw_mul(fr, ls.irradiance), passed) * (wp.dot(n, ls.to_light) / pmf)
+        if wp.static(area):
+            if i < lights.punctual + lights.area:
+                light = scene.area_lights[i - lights.punctual]
+                l, distance, light_pdf = sample_area_light(light, h.p, uniform2(key, dim + LIGHT_POINT))
+                pdf = pmf * light_pdf
+                if not (pdf > 0.0) or wp.dot(h.ng, l) <= 0.0 or wp.dot(n, l) <= 0.0:
+                    return wp.vec3(0.0)
+                if max_channel(light.radiance) <= 0.0:
+                    return wp.vec3(0.0)
+                origin, direction, max_t = segment_to_point(h, h.p + l * distance, l)
+                passed = transmittance(scene, origin, direction, max_t)
+                if max_channel(passed) <= 0.0:
+                    return wp.vec3(0.0)
+                fr = brdf(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
+                          thin_film)
+                weight = power_heuristic(pdf, pdf_brdf_direction(n, v, l, alpha, p_specular))
+                return wp.cw_mul(wp.cw_mul(fr, light.radiance), passed) * (wp.dot(n, l) * weight / pdf)
         if wp.static(f.emission):
-            face = lights.face[i - lights.punctual]
+            face = lights.face[i - lights.punctual - lights.area]
             if face == h.face:
                 return wp.vec3(0.0)  # a flat triangle does not light itself
             b = sample_triangle(uniform2(key, dim + LIGHT_POINT))
@@ -303,6 +370,15 @@ def path_kernel(features):
                 previous_p = cam.eye
                 for bounce in range(max_bounces + 1):
                     found, h, passed, met = find_surface(scene, origin, d, bounce == 0, key, bounce)
+                    if wp.static(area):
+                        if bounce > 0:  # camera rays do not see area lights (as in the direct kernel)
+                            # the surface reached bounds the lights seen, unless a transmissive
+                            # wall was met: then transmittance weighs them, whatever the path did
+                            reach = float(RAY_FAR)
+                            if found and not met:
+                                reach = wp.dot(h.p - origin, d)
+                            radiance = radiance + wp.cw_mul(throughput, area_lights_met(
+                                scene, lights, previous_p, origin, d, reach, previous_pdf))
                     throughput = wp.cw_mul(throughput, passed)
                     if not found:
                         if bounce == 0:
@@ -314,10 +390,11 @@ def path_kernel(features):
                                 if met:  # the background seen through them
                                     radiance = radiance + wp.cw_mul(throughput, background)
                         else:
-                            if wp.static(bool(f.environment)):
-                                # next-event estimation of the environment, once it is importance
-                                # sampled, weighs this by MIS against its pdf
-                                radiance = radiance + wp.cw_mul(throughput, environment_radiance(env, d))
+                            if wp.static(environment_lights):
+                                # weighted against next-event estimation's choice of the environment
+                                weight = power_heuristic(previous_pdf,
+                                                         lights.environment * pdf_environment(env.sampler, env, d))
+                                radiance = radiance + wp.cw_mul(throughput, environment_radiance(env, d)) * weight
                         break
                     mat = scene.materials[h.material]
                     uv = hit_texcoords(scene, h, hit_uv(scene, h), origin, dir_dx, dir_dy)
@@ -364,7 +441,7 @@ def path_kernel(features):
                     alpha = alpha_from_roughness(roughness)
                     p_specular = lobe_probability(base, metallic, specular, f0_dielectric, wp.dot(n, v))
                     dim = FIRST_BOUNCE_DIMENSION + bounce * DIMENSIONS_PER_BOUNCE
-                    lit = next_event(scene, lights, h, n, v, base, metallic, roughness, specular, mat.ior_eta,
+                    lit = next_event(scene, lights, env, h, n, v, base, metallic, roughness, specular, mat.ior_eta,
                                      mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film, alpha, p_specular,
                                      key, dim)
                     radiance = radiance + wp.cw_mul(throughput, lit)

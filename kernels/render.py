@@ -9,9 +9,9 @@ import warp as wp
 
 from .ambient import ambient_for
 from .aovs import denoiser_albedo
-from .area_lights import (AREA_LIGHT_STREAM, AREA_RECT, AreaLightData, rect_irradiance,
+from .area_lights import (AREA_LIGHT_STREAM, AREA_RECT, AreaLightData, area_light_kinds, rect_irradiance,
                           rect_representative_point, representative_point_normalization, robust_length,
-                          sample_rect_light, sample_sphere_light, sphere_irradiance, sphere_representative_point)
+                          sphere_irradiance, sphere_representative_point)
 from .brdf import albedo_coupled_brdf_for, brdf_for, fresnel_dielectric, max_channel
 from .ibl import EnvironmentData, environment_radiance, prefiltered_radiance
 from .camera import CameraData, camera_ray_direction
@@ -68,6 +68,8 @@ def render_kernel(features):
     # area lights, and their rung: "representative_point" or "monte_carlo" (pbrwarp.AreaLighting)
     area = (f.sphere_lights or f.rect_lights) and bool(f.area_lighting)
     area_rung = f.area_lighting.method if area else None
+    # (direction, distance, solid-angle pdf) of a point of an area light, by its kind
+    sample_area_light = area_light_kinds(f.sphere_lights, f.rect_lights)[0]
     if area_rung == "representative_point" and f.specular:
         # the specular lobe alone, shaded from the representative point
         specular_brdf = brdf_for(False, True, **dataclasses.asdict(f.brdf), **layers)
@@ -150,19 +152,6 @@ def render_kernel(features):
         if wp.static(f.transmissive_shadows):
             return light_passed(scene, origin, direction, reach)
         return wp.vec3(0.0)
-
-    @wp.func
-    def sample_area_light(light: AreaLightData, p: wp.vec3, u: wp.vec2):
-        """(direction, distance, solid-angle pdf) of a point of the light, by its kind."""
-        # static branches: the code of an absent kind is not generated
-        if wp.static(f.sphere_lights and f.rect_lights):
-            if light.kind == AREA_RECT:
-                return sample_rect_light(light, p, u)
-            return sample_sphere_light(light, p, u)
-        elif wp.static(f.sphere_lights):
-            return sample_sphere_light(light, p, u)
-        else:
-            return sample_rect_light(light, p, u)
 
     @wp.func
     def sphere_shape(light: AreaLightData, p: wp.vec3, n: wp.vec3, r: wp.vec3, centre_distance: float):

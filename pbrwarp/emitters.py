@@ -1,6 +1,6 @@
-"""The path tracer's light table (kernels/emitters.py LightTable): every punctual light and every
-emissive triangle, each chosen for next-event estimation with a probability proportional to an
-estimate of the power it emits.
+"""The path tracer's light table (kernels/emitters.py LightTable): every punctual light, every area
+light, every emissive triangle and the environment (where it lights the scene), each chosen for
+next-event estimation with a probability proportional to an estimate of the power it emits.
 
 Every triangle whose material emits (a non-zero emissive factor, not unlit) is a light. The
 estimates, in lumen-like units (luminance Y = 0.2126 R + 0.7152 G + 0.0722 B of the linear RGB):
@@ -11,11 +11,19 @@ estimates, in lumen-like units (luminance Y = 0.2126 R + 0.7152 G + 0.0722 B of 
 - a point light: 4 pi Y(intensity); a spot light: that times the share of the sphere its outer
   cone covers, (1 - cos outer) / 2;
 - a directional light: Y(illuminance) times the cross-section pi r^2 of the scene's bounding
-  sphere.
+  sphere;
+- a sphere or rectangle light: its luminous power, pi Y(radiance) area (pbrwarp/lights.py);
+- the environment: the power it sends into the scene's bounding sphere, pi r^2 times the
+  integral of its radiance over the sphere of directions, 4 pi^2 r^2 Y(mean radiance) (as a
+  directional light of the same illuminance would send through the cross-section, from every
+  side). It is chosen with probability W_env / (W_env + the table's total weight), or 1 where
+  the table is empty.
 
-The table depends on the uploaded scene alone (pbrwarp.gpu_scene.upload's GpuScene, which is
-rebuilt when a mesh, material or light changes), so it is kept in the scene's cache under that and
-built once, by one thread, for every render that shares it.
+The table's entries depend on the uploaded scene alone (pbrwarp.gpu_scene.upload's GpuScene,
+which is rebuilt when a mesh, material or light changes), so they are kept in the scene's cache
+under that and built once, by one thread, for every render that shares it; the environment's
+probability (its intensity can change between renders) is set in a LightTable of each render's
+own.
 """
 
 from __future__ import annotations
@@ -45,9 +53,41 @@ class _Same:
     __hash__ = None
 
 
-def light_table(scene, gpu) -> LightTable:
-    """The light table of ``scene`` as uploaded in ``gpu`` (kept in ``scene.cache``)."""
-    return scene.cache.get("emitters", _Same(gpu), lambda: _build(scene, gpu)).table
+def light_table(scene, gpu, environment_lights: bool = False) -> LightTable:
+    """The light table of ``scene`` as uploaded in ``gpu`` (its entries kept in ``scene.cache``),
+    with the scene's environment among the lights where ``environment_lights`` (the render's
+    kernel lights with it; an environment seen only as background is no light)."""
+    built = scene.cache.get("emitters", _Same(gpu), lambda: _build(scene, gpu))
+    table = LightTable()
+    table.cdf, table.pmf, table.face, table.face_pmf = built.arrays
+    table.count, table.punctual, table.area = built.count, built.punctual, built.area
+    table.environment = 0.0
+    if environment_lights and scene.environment is not None:
+        table.environment = environment_probability(environment_weight(scene.environment, built.radius),
+                                                    built.total)
+    return table
+
+
+def environment_probability(weight: float, others: float) -> float:
+    """The probability of choosing the environment of selection weight ``weight`` beside entries
+    of total weight ``others``: its share, 1 without other lights (whatever its weight)."""
+    if not others > 0.0:
+        return 1.0
+    if not weight > 0.0:
+        return 0.0
+    return float(weight / (weight + others)) if math.isfinite(weight) else 1.0
+
+
+def environment_weight(environment, radius: float) -> float:
+    """The environment's selection weight (module docstring): 4 pi^2 r^2 Y(mean radiance), the mean
+    over solid angle."""
+    from .kernels.equirect import texel_solid_angles
+
+    texels = environment.texels
+    solid_angle = texel_solid_angles(texels.shape[0])
+    row_luminance = (texels.astype(np.float64) @ LUMINANCE).sum(axis=1)
+    mean = float(row_luminance @ solid_angle) / (4.0 * math.pi) * float(environment.intensity)
+    return 4.0 * math.pi ** 2 * max(radius, 1e-30) ** 2 * mean
 
 
 def emissive_materials(scene) -> int:
@@ -57,11 +97,13 @@ def emissive_materials(scene) -> int:
 
 
 class _Built:
-    """The table and the arrays it points to (kept alive with it)."""
+    """The table's arrays (cdf, pmf, face, face_pmf), its counts, its entries' total weight and the
+    radius of the scene's bounding sphere the weights use."""
 
-    def __init__(self, table: LightTable, arrays: tuple):
-        self.table = table
+    def __init__(self, arrays: tuple, count: int, punctual: int, area: int, total: float, radius: float):
         self.arrays = arrays
+        self.count, self.punctual, self.area = count, punctual, area
+        self.total, self.radius = total, radius
 
 
 def face_weights(positions: np.ndarray, indices: np.ndarray, face_primitive: np.ndarray, emissive: np.ndarray,
@@ -74,22 +116,33 @@ def face_weights(positions: np.ndarray, indices: np.ndarray, face_primitive: np.
     return per_primitive[face_primitive] * area
 
 
-def punctual_weights(scene) -> np.ndarray:
-    """Each of ``scene.punctual_lights``' selection weight (see the module docstring), in float64."""
+def bounding_radius(scene) -> float:
+    """The radius of the sphere about the scene's bounding box (0 for an empty scene)."""
+    if not scene.primitives:
+        return 0.0
+    lo, hi = scene.bounds()
+    return 0.5 * float(np.linalg.norm(hi - lo))
+
+
+def punctual_weights(scene, radius: float) -> np.ndarray:
+    """Each of ``scene.punctual_lights``' selection weight (see the module docstring), in float64;
+    ``radius`` that of the scene's bounding sphere."""
     weights = []
-    radius = None
     for light in scene.punctual_lights:
         y = float(np.asarray(light.color, dtype=np.float64) @ LUMINANCE) * light.intensity
         if light.kind == DIRECTIONAL:
-            if radius is None:
-                lo, hi = scene.bounds()
-                radius = 0.5 * float(np.linalg.norm(hi - lo))
             weights.append(y * math.pi * max(radius, 1e-30) ** 2)
         elif light.kind == SPOT:
             weights.append(4.0 * math.pi * y * 0.5 * (1.0 - math.cos(light.outer_cone)))
         else:
             weights.append(4.0 * math.pi * y)
     return np.array(weights, dtype=np.float64)
+
+
+def area_weights(scene) -> np.ndarray:
+    """Each of ``scene.area_lights``' selection weight, pi Y(color) intensity area, in float64."""
+    return np.array([float(np.asarray(light.color, dtype=np.float64) @ LUMINANCE) * light.power
+                     for light in scene.area_lights], dtype=np.float64)
 
 
 def _build(scene, gpu) -> _Built:
@@ -102,7 +155,8 @@ def _build(scene, gpu) -> _Built:
     faces = face_weights(geometry.positions.numpy(), geometry.indices.numpy(), face_primitive, emissive,
                          double_sided)
     emitting = np.flatnonzero(faces > 0.0).astype(np.int32)
-    weights = np.concatenate([punctual_weights(scene), faces[emitting]])
+    radius = bounding_radius(scene)
+    weights = np.concatenate([punctual_weights(scene, radius), area_weights(scene), faces[emitting]])
     weights = np.where(np.isfinite(weights), weights, np.finfo(np.float32).max)
     total = weights.sum()
     count = len(weights) if total > 0.0 else 0
@@ -111,16 +165,14 @@ def _build(scene, gpu) -> _Built:
     if count:
         cdf[-1] = 1.0  # rounding must leave no u in [0, 1) past the last entry
     face_pmf = np.zeros(max(len(face_primitive), 1), dtype=np.float32)
-    punctual = len(scene.punctual_lights)
+    punctual, area = len(scene.punctual_lights), len(scene.area_lights)
     if count:
-        face_pmf[emitting] = pmf[punctual:]
+        face_pmf[emitting] = pmf[punctual + area:]
     arrays = (
         wp.array(cdf.astype(np.float32), dtype=float, device="cpu"),
         wp.array(pmf.astype(np.float32), dtype=float, device="cpu"),
         wp.array(emitting if len(emitting) else np.zeros(1, np.int32), dtype=wp.int32, device="cpu"),
         wp.array(face_pmf, dtype=float, device="cpu"),
     )
-    table = LightTable()
-    table.cdf, table.pmf, table.face, table.face_pmf = arrays
-    table.count, table.punctual = count, punctual if count else 0
-    return _Built(table, arrays)
+    return _Built(arrays, count, punctual if count else 0, area if count else 0, float(total) if count else 0.0,
+                  radius)

@@ -434,10 +434,8 @@ PATH_UNSIMULATED = {
     "volume": ("volume (KHR_materials_volume)", "its surfaces are thin walls: no refraction, no absorption"),
     "rough_transmission": ("rough transmission (transmissive materials with roughness > 0)",
                            "light passes them straight, unblurred"),
-    "sphere_lights": ("sphere lights (pw.SphereLight)", "they light nothing"),
-    "rect_lights": ("rectangle lights (pw.RectLight)", "they light nothing"),
 }
-_PATH_DROPPED = ("clearcoat_textures", "sheen_textures", "transmissive_shadows", "area_lighting", "area_shadows")
+_PATH_DROPPED = ("clearcoat_textures", "sheen_textures", "transmissive_shadows")
 
 
 def path_unsimulated(decisions: list[Decision], scene) -> list[str]:
@@ -456,17 +454,26 @@ def _unsimulated(decisions: list[Decision], scene) -> list[str]:
     return names
 
 
+def _listed(items: list[str]) -> str:
+    """"a", "a and b", "a, b and c"."""
+    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
+
+
 def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int) -> list[Decision]:
     """``decisions`` (the direct integrator's) turned into the path tracer's: what it traces
     instead of the direct kernel's shadow and visibility techniques, and the extensions it does not
     simulate yet, dropped (pbrwarp.render warns about them)."""
-    lights, emitting = len(scene.punctual_lights), emissive_materials(scene)
+    lights, areas, emitting = len(scene.punctual_lights), len(scene.area_lights), emissive_materials(scene)
     masked = sum(1 for p in scene.primitives if p.material.alpha_mode == "MASK")
     sources = []
     if lights:
         sources.append(_count(lights, "punctual light"))
+    if areas:
+        sources.append(_count(areas, "area light"))
     if emitting:
         sources.append(f"the triangles of {_count(emitting, 'emissive mesh')}")
+    if scene.environment is not None and any(d.name == "environment" and d.present for d in decisions):
+        sources.append("the environment")
     changed = {
         "visibility": ("raycast", "primary visibility ray cast: each camera ray starts a path"),
         "supersampling": (True, f"{_count(spp, 'path')} per pixel through random points of it (counter-based "
@@ -474,12 +481,17 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
         "occlusion_texture": (False, "no occlusion textures read: the path tracer traces the occlusion they stand "
                                      "for"),
         "shadows": ("rays", "next-event estimation at every path vertex: a shadow ray towards one light chosen by "
-                            f"power from {' and '.join(sources)} (punctual lights by light sampling alone, emissive "
-                            "triangles weighted against BSDF sampling by the power heuristic)")
+                            f"power from {_listed(sources)} (punctual lights by light sampling alone, the others "
+                            "weighted against BSDF sampling by the power heuristic; BSDF-sampled rays see area "
+                            "lights, camera rays do not)")
         if sources else (False, "no shadow rays: no lights and no emissive meshes to sample"),
         "masked_occlusion": (bool(masked), f"shadow rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
                              else "no cut-outs in shadow rays: no alpha-masked material"),
     }
+    if areas:
+        changed["area_lighting"] = (False, "no area-light rung: the path tracer samples area lights by next-event "
+                                           "estimation (area_lighting= applies to integrator='direct')")
+        changed["area_shadows"] = (False, "no separate area-light shadow rays: next-event estimation's serve them")
     transmissive = sum(1 for p in scene.primitives if p.material.transmissive and not p.material.unlit)
     if transmissive:
         changed["transmission"] = (True, "paths and shadow rays pass straight through smooth thin transmissive walls, "
@@ -487,7 +499,8 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
                                          f"transmission: {_count(transmissive, 'material')})")
     if scene.environment is not None:
         changed["environment"] = (IBL(), f"environment ({scene.environment!r}): the radiance of rays that escape "
-                                         "the scene (BSDF-sampled, at full weight: not yet importance-sampled)")
+                                         "the scene, a light importance-sampled by luminance for next-event estimation and weighted "
+                                         "against BSDF sampling by the power heuristic")
     out = [Decision("integrator", "path", f"path tracing (integrator='path'): light bouncing up to {max_bounces} "
                     f"times between surfaces (paths of up to {max_bounces + 1} segments), the BRDF's lobes sampled "
                     "by a mixture of cosine and GGX visible normals, Russian roulette after three bounces; "
@@ -517,7 +530,7 @@ def path_features(f: Features) -> Features:
         f, integrator="path", visibility="raycast", supersampling=True, shadows="rays", occlusion_texture=False,
         environment=IBL() if f.environment else False, clearcoat=False, clearcoat_textures=False, sheen=False,
         sheen_textures=False, volume=False, rough_transmission=False, transmissive_shadows=False,
-        sphere_lights=False, rect_lights=False, area_lighting=False, area_shadows=False)
+        area_lighting=False, area_shadows=False)
 
 
 def check_integrator(integrator) -> str:

@@ -422,7 +422,7 @@ def _render_path(scene: Scene, gpu, features: Features, camera: Camera, width: i
     out_normal = huge_pages.empty(aov_shape, wp.vec3)
     out_albedo = huge_pages.empty(aov_shape, wp.vec3)
     env = _environment_arguments(scene, threads)[0] if features.environment else _no_environment()[0]
-    lights = light_table(scene, gpu)
+    lights = light_table(scene, gpu, environment_lights=bool(features.environment))
     rows_taken = wp.zeros(WORK_SLOTS, dtype=wp.int32, device="cpu")
     inputs = [gpu.data, cam, spp, first_sample, int(seed) % (2**31), max_bounces, rows_taken, ROWS_PER_TAKE,
               wp.vec3(*background), out_rgb, out_alpha, out_depth, out_normal, out_albedo, env, lights]
