@@ -149,12 +149,14 @@ def command_line(parser, args) -> str:
     return " ".join(parts)
 
 
-def write_results(name: str, command: str, payload: dict, markdown: str) -> None:
-    RESULTS.mkdir(parents=True, exist_ok=True)
+def write_results(name: str, command: str, payload: dict, markdown: str, directory: Path = RESULTS) -> None:
+    """Write ``directory``/name.json and name.md (bench/results by default) and print the markdown."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
     info = machine()
     payload = {"command": command, "machine": info, **payload}
-    (RESULTS / f"{name}.json").write_text(json.dumps(payload, indent=2) + "\n")
+    (directory / f"{name}.json").write_text(json.dumps(payload, indent=2) + "\n")
     header = (f"Command: `{command}`\n\nMachine: {info['cpu']}, {info['cores']} cores; Python {info['python']}, "
               f"warp {info['warp']}; commit {info['commit']}; {info['date']}.\n\n")
-    (RESULTS / f"{name}.md").write_text(header + markdown)
+    (directory / f"{name}.md").write_text(header + markdown)
     print(header + markdown, file=sys.stdout)
