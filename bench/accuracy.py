@@ -39,6 +39,7 @@ from common import RESULTS, command_line, median_time, write_results  # noqa: E4
 import pbrwarp as pw  # noqa: E402
 from pbrwarp import meshes  # noqa: E402
 from pbrwarp.brdf import PRESETS  # noqa: E402
+from pbrwarp.kernels import stages  # noqa: E402
 
 DEFAULT = pw.BRDF()
 REFERENCE = PRESETS["reference"]
@@ -102,6 +103,20 @@ def report_scenes():
 REFERENCE_BOUNCES = 16
 REFERENCE_SEEDS = (1_000_003, 2_000_003)
 ROW_SPP_PATH = 16
+
+
+def brdf_ns_per_eval(brdf, repeats):
+    """ns per evaluation of ``brdf``: a kernel of 1e7 evaluations on random inputs on one thread,
+    minus the cost of those inputs alone."""
+    import warp as wp
+
+    threads, evals = 1000, 10_000
+    out = wp.empty(threads, dtype=wp.vec3, device="cpu")
+    kernel = stages.brdf_throughput_kernel(**brdf.__dict__)
+    full = median_time(lambda: wp.launch(kernel, threads, inputs=[evals, out], device="cpu"), repeats)
+    inputs = median_time(lambda: wp.launch(stages.random_inputs_only, threads, inputs=[evals, out], device="cpu"),
+                         repeats)
+    return 1e9 * (full - inputs) / (threads * evals)
 
 
 def rel_mse(test, ref, covered) -> float:
@@ -184,6 +199,7 @@ def main(argv=None):
                 candidates.append((family, f"{family}={rung}", brdf))
     for family, label, brdf in candidates:
         row(family, label + ", spp=4", direct(spp=4, brdf=brdf))
+        rows[-1]["ns_per_brdf_eval"] = brdf_ns_per_eval(brdf, args.repeats)
     direct_default = None
     for spp in (1, 4, 16, 64):
         frames = row("sampling", f"direct, spp={spp}" + (" (default)" if spp == 1 else ""), direct(spp=spp))
@@ -216,12 +232,15 @@ def main(argv=None):
     own = {n: r.own_rel_mse for n, r in [*zip(names, references), *own_scenes.items()]}
     smallest = min((e for r in rows if r["family"] != "transmission" for e in r["per_scene"] if e > 0), default=0.0)
     worst_own = max(own.values())
-    header = ("| family | rung | ms | relMSE (mean) | FLIP (mean) | " + " | ".join(f"relMSE {n}" for n in names) + " |")
-    lines = [header, "|" + "---|" * (5 + len(names))]
+    header = ("| family | rung | ms | ns / BRDF eval | relMSE (mean) | FLIP (mean) | "
+              + " | ".join(f"relMSE {n}" for n in names) + " |")
+    lines = [header, "|" + "---|" * (6 + len(names))]
     for r in rows:
         fl = f"{r['flip']:.4f}" if r["flip"] is not None else "n/a"
         per_scene = [f"{e:.3g}" for e in r["per_scene"]] if r["scene"] == "report" else [""] * len(names)
-        lines.append(f"| {r['family']} | {r['rung']} | {r['ms']:.0f} | {r['rel_mse']:.3g} | {fl} | " + " | ".join(per_scene) + " |")
+        ns = f"{r['ns_per_brdf_eval']:.1f}" if "ns_per_brdf_eval" in r else ""
+        lines.append(f"| {r['family']} | {r['rung']} | {r['ms']:.0f} | {ns} | {r['rel_mse']:.3g} | {fl} | "
+                     + " | ".join(per_scene) + " |")
     lines += ["", f"{width}x{height} frames on every core. Reference: integrator=\"path\", max_bounces={REFERENCE_BOUNCES}, "
               f"quality=reference, {args.reference_spp} spp as two independent halves. Its own relMSE "
               "(relMSE(half A, half B) / 4), per scene: " + ", ".join(f"{n} {v:.2g}" for n, v in own.items())
@@ -233,7 +252,9 @@ def main(argv=None):
               "filter: a grazing brick floor; each against its own path reference; transmission: "
               "rough glass before a brick wall, against the sampled rung at 256 spp, NOT a path-traced ground truth, "
               "as the path tracer does not refract through rough glass). ms: the row's own spp, median, summed "
-              "over the scenes it covers (ms of the shadow-map rows include rasterizing the maps). Direct-integrator "
+              "over the scenes it covers (ms of the shadow-map rows include rasterizing the maps); ns / BRDF eval: a "
+              "kernel of 1e7 evaluations of the row's BRDF on one thread, minus the cost of its random inputs. "
+              "Direct-integrator "
               "rows' error includes what direct lighting misses (interreflection, the emissive light of the "
               "Cornell box): see the figure below.",
               "", "![error vs time](accuracy.png)", "",
