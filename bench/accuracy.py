@@ -241,40 +241,10 @@ def main(argv=None):
 
     names = [n for n, _, _ in scenes]
     own = {n: r.own_rel_mse for n, r in [*zip(names, references), *own_scenes.items()]}
-    smallest = min((e for r in rows if r["family"] != "transmission" for e in r["per_scene"] if e > 0), default=0.0)
-    worst_own = max(own.values())
-    header = ("| family | rung | ms | ns / BRDF eval | relMSE (mean) | FLIP (mean) | "
-              + " | ".join(f"relMSE {n}" for n in names) + " |")
-    lines = [header, "|" + "---|" * (6 + len(names))]
-    for r in rows:
-        fl = f"{r['flip']:.4f}" if r["flip"] is not None else "n/a"
-        per_scene = [f"{e:.3g}" for e in r["per_scene"]] if r["scene"] == "report" else [""] * len(names)
-        ns = f"{r['ns_per_brdf_eval']:.1f}" if "ns_per_brdf_eval" in r else ""
-        lines.append(f"| {r['family']} | {r['rung']} | {r['ms']:.0f} | {ns} | {r['rel_mse']:.3g} | {fl} | "
-                     + " | ".join(per_scene) + " |")
-    lines += ["", f"{width}x{height} frames on every core. Reference: integrator=\"path\", max_bounces={REFERENCE_BOUNCES}, "
-              f"quality=reference, {args.reference_spp} spp as two independent halves. Its own relMSE "
-              "(relMSE(half A, half B) / 4), per scene: " + ", ".join(f"{n} {v:.2g}" for n, v in own.items())
-              + f"; the largest, {worst_own:.2g}, is {worst_own / smallest if smallest else float('nan'):.2g} x the "
-              f"smallest nonzero error in the table ({smallest:.2g})"
-              + ("." if smallest and worst_own <= smallest / 10 else
-                 " - ABOVE the 1/10 the report needs: raise --reference-spp."),
-              "Rows without per-scene errors have a scene of their own (ibl: an HDR-lit sphere grid; texture "
-              "filter: a grazing brick floor; each against its own path reference; transmission: "
-              "rough glass before a brick wall, against the sampled rung at 256 spp, NOT a path-traced ground truth, "
-              "as the path tracer does not refract through rough glass). relMSE leaves out the 0.1% of each image's "
-              "pixels with the largest errors (fireflies). ms: the row's own spp, median, summed "
-              "over the scenes it covers (ms of the shadow-map rows include rasterizing the maps); ns / BRDF eval: a "
-              "kernel of 1e7 evaluations of the row's BRDF on one thread, minus the cost of its random inputs. "
-              "Direct-integrator "
-              "rows' error includes what direct lighting misses (interreflection, the emissive light of the "
-              "Cornell box): see the figure below.",
-              "", "![error vs time](accuracy.png)", "",
-              "What direct lighting misses, per scene: path reference, direct default, |difference| x4 (tone-mapped):",
-              "", "![direct misses](accuracy_direct_misses.png)"]
+    payload = {"rows": rows, "scenes": names, "reference_own_rel_mse": own, "size": [width, height],
+               "reference_spp": args.reference_spp}
     command = command_line(ap, args)
-    write_results("accuracy", command, {"rows": rows, "scenes": names, "reference_own_rel_mse": own}, "\n".join(lines) + "\n",
-                  directory=out)
+    write_results("accuracy", command, payload, report_markdown(payload), directory=out)
     plot(rows, out / "accuracy.png")
     direct_misses_sheet([(n, r.frame, d) for n, r, d in zip(names, references, direct_default)],
                         out / "accuracy_direct_misses.png")
@@ -407,6 +377,66 @@ def direct_misses_sheet(entries, path):
         for j, image in enumerate((a, b, difference)):
             out.paste(Image.fromarray(image), (label_w + j * w, top + i * h))
     out.save(path)
+
+
+def smallest_errors(rows, names, own_scenes):
+    """Per scene, the smallest nonzero relMSE of its rows (the report scenes' per-scene columns;
+    a scene of its own, its rows' relMSE; not the glass, whose reference is not path traced)."""
+    smallest = {}
+    for k, name in enumerate(names):
+        errors = [r["per_scene"][k] for r in rows if r["scene"] == "report" and r["per_scene"][k] > 0]
+        smallest[name] = min(errors, default=0.0)
+    for name in own_scenes:
+        errors = [r["rel_mse"] for r in rows if r["scene"] == name and r["rel_mse"] > 0]
+        smallest[name] = min(errors, default=0.0)
+    return smallest
+
+
+def report_markdown(payload) -> str:
+    """The report's table and notes from its JSON payload."""
+    rows, names, own = payload["rows"], payload["scenes"], payload["reference_own_rel_mse"]
+    width, height = payload.get("size", (160, 120))
+    smallest = smallest_errors(rows, names, [n for n in own if n not in names])
+    header = ("| family | rung | ms | ns / BRDF eval | relMSE (mean) | FLIP (mean) | "
+              + " | ".join(f"relMSE {n}" for n in names) + " |")
+    lines = [header, "|" + "---|" * (6 + len(names))]
+    for r in rows:
+        fl = f"{r['flip']:.4f}" if r["flip"] is not None else "n/a"
+        per_scene = [f"{e:.3g}" for e in r["per_scene"]] if r["scene"] == "report" else [""] * len(names)
+        ns = f"{r['ns_per_brdf_eval']:.1f}" if "ns_per_brdf_eval" in r else ""
+        lines.append(f"| {r['family']} | {r['rung']} | {r['ms']:.0f} | {ns} | {r['rel_mse']:.3g} | {fl} | "
+                     + " | ".join(per_scene) + " |")
+    noisy = [n for n in own if smallest[n] and own[n] > smallest[n] / 10]
+    lines += ["", f"{width}x{height} frames on every core. Reference: integrator=\"path\", max_bounces={REFERENCE_BOUNCES}, "
+              f"quality=reference, {payload.get('reference_spp', 4096)} spp as two independent halves. Its own relMSE "
+              "(relMSE(half A, half B) / 4) per scene, and the fraction it is of the scene's smallest nonzero "
+              "error: " + ", ".join(f"{n} {own[n]:.2g} (1/{smallest[n] / own[n]:.0f})" for n in own if own[n] > 0)
+              + ("." if not noisy else f"; above the tenth the report needs in {', '.join(noisy)}: "
+                 "raise --reference-spp."),
+              "Rows without per-scene errors have a scene of their own (ibl: an HDR-lit sphere grid; texture "
+              "filter: a grazing brick floor; each against its own path reference; transmission: "
+              "rough glass before a brick wall, against the sampled rung at 256 spp, NOT a path-traced ground truth, "
+              "as the path tracer does not refract through rough glass). relMSE leaves out the 0.1% of each image's "
+              "pixels with the largest errors (fireflies). ms: the row's own spp, median, summed "
+              "over the scenes it covers (ms of the shadow-map rows include rasterizing the maps); ns / BRDF eval: a "
+              "kernel of 1e7 evaluations of the row's BRDF on one thread, minus the cost of its random inputs. "
+              "Direct-integrator rows' error includes what direct lighting misses (interreflection, the emissive "
+              "light of the Cornell box): see the figure below.",
+              "", "![error vs time](accuracy.png)", "",
+              "What direct lighting misses, per scene: path reference, direct default, |difference| x4 (tone-mapped):",
+              "", "![direct misses](accuracy_direct_misses.png)"]
+    return "\n".join(lines) + "\n"
+
+
+def rewrite(directory=RESULTS):
+    """Rewrite accuracy.md from accuracy.json, keeping the run's command, machine, commit and date
+    (python -c "import accuracy; accuracy.rewrite()" in bench/)."""
+    directory = Path(directory)
+    payload = json.loads((directory / "accuracy.json").read_text())
+    info = payload["machine"]
+    header = (f"Command: `{payload['command']}`\n\nMachine: {info['cpu']}, {info['cores']} cores; Python "
+              f"{info['python']}, warp {info['warp']}; commit {info['commit']}; {info['date']}.\n\n")
+    (directory / "accuracy.md").write_text(header + report_markdown(payload))
 
 
 def replot(directory=RESULTS):
