@@ -224,6 +224,22 @@ def path_kernel(features):
         return total
 
     @wp.func
+    def light_sample(scene: SceneData, origin: wp.vec3, direction: wp.vec3, max_t: float, le: wp.vec3, pdf: float,
+                     n: wp.vec3, v: wp.vec3, l: wp.vec3, base: wp.vec3, metallic: float, roughness: float,
+                     specular: float, eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, aniso_t: wp.vec3,
+                     anisotropy: float, thin_film: wp.vec3, alpha: float, p_specular: float) -> wp.vec3:
+        """The radiance reflected towards v of light ``le`` arriving along l, sampled with solid-angle
+        ``pdf`` (choice included) by next-event estimation: passed through the shadow ray's
+        segment (transmittance), MIS-weighted (power heuristic) against BSDF sampling."""
+        passed = transmittance(scene, origin, direction, max_t)
+        if max_channel(passed) <= 0.0:
+            return wp.vec3(0.0)
+        fr = brdf(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
+                  thin_film)
+        weight = power_heuristic(pdf, pdf_brdf_direction(n, v, l, alpha, p_specular))
+        return wp.cw_mul(wp.cw_mul(fr, le), passed) * (wp.dot(n, l) * weight / pdf)
+
+    @wp.func
     def next_event(scene: SceneData, lights: LightTable, env: EnvironmentData, h: SurfaceHit, n: wp.vec3, v: wp.vec3, base: wp.vec3,
                    metallic: float, roughness: float, specular: float, eta: wp.vec3, kappa: wp.vec3,
                    f0_dielectric: wp.vec3, aniso_t: wp.vec3, anisotropy: float, thin_film: wp.vec3, alpha: float,
@@ -244,13 +260,9 @@ def path_kernel(features):
                 le = environment_radiance(env, l)
                 if max_channel(le) <= 0.0:
                     return wp.vec3(0.0)
-                passed = transmittance(scene, offset_ray_origin(h.p, h.p_error, h.ng, l), l, RAY_FAR)
-                if max_channel(passed) <= 0.0:
-                    return wp.vec3(0.0)
-                fr = brdf(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
-                          thin_film)
-                weight = power_heuristic(pdf, pdf_brdf_direction(n, v, l, alpha, p_specular))
-                return wp.cw_mul(wp.cw_mul(fr, le), passed) * (wp.dot(n, l) * weight / pdf)
+                return light_sample(scene, offset_ray_origin(h.p, h.p_error, h.ng, l), l, RAY_FAR, le, pdf, n, v, l,
+                                    base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t,
+                                    anisotropy, thin_film, alpha, p_specular)
         if i < 0:
             return wp.vec3(0.0)
         if wp.static(punctual):
@@ -278,13 +290,9 @@ def path_kernel(features):
                 if max_channel(light.radiance) <= 0.0:
                     return wp.vec3(0.0)
                 origin, direction, max_t = segment_to_point(h, h.p + l * distance, l)
-                passed = transmittance(scene, origin, direction, max_t)
-                if max_channel(passed) <= 0.0:
-                    return wp.vec3(0.0)
-                fr = brdf(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
-                          thin_film)
-                weight = power_heuristic(pdf, pdf_brdf_direction(n, v, l, alpha, p_specular))
-                return wp.cw_mul(wp.cw_mul(fr, light.radiance), passed) * (wp.dot(n, l) * weight / pdf)
+                return light_sample(scene, origin, direction, max_t, light.radiance, pdf, n, v, l, base, metallic,
+                                    roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy, thin_film,
+                                    alpha, p_specular)
         if wp.static(f.emission):
             face = lights.face[i - lights.punctual - lights.area]
             if face == h.face:
@@ -315,13 +323,8 @@ def path_kernel(features):
             if max_channel(le) <= 0.0:
                 return wp.vec3(0.0)
             origin, direction, max_t = segment_to_point(h, target, l)
-            passed = transmittance(scene, origin, direction, max_t)
-            if max_channel(passed) <= 0.0:
-                return wp.vec3(0.0)
-            fr = brdf(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
-                      thin_film)
-            weight = power_heuristic(pdf, pdf_brdf_direction(n, v, l, alpha, p_specular))
-            return wp.cw_mul(wp.cw_mul(fr, le), passed) * (wp.dot(n, l) * weight / pdf)
+            return light_sample(scene, origin, direction, max_t, le, pdf, n, v, l, base, metallic, roughness, specular,
+                                eta, kappa, f0_dielectric, aniso_t, anisotropy, thin_film, alpha, p_specular)
         return wp.vec3(0.0)
 
     @wp.func
