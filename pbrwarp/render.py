@@ -333,6 +333,16 @@ def _renderer(scene, camera, width, height, spp, threads=None, shadows=True, bac
                              shadows)
 
 
+def _output_buffers(width: int, height: int, aovs: bool):
+    """The kernels' outputs: rgb, alpha, and the depth, normal and albedo AOVs ((1, 1) placeholders
+    without aovs), on huge pages: fresh pages would fault one by one as the threads first write
+    them."""
+    aov_shape = (height, width) if aovs else (1, 1)
+    return (huge_pages.empty((height, width), wp.vec3), huge_pages.empty((height, width), float),
+            huge_pages.empty(aov_shape, float), huge_pages.empty(aov_shape, wp.vec3),
+            huge_pages.empty(aov_shape, wp.vec3))
+
+
 def _render_direct(scene: Scene, gpu, features: Features, camera: Camera, width: int, height: int, seed, threads,
                    background, shadows, spp: int, first_sample: int, progress) -> Frame:
     """render(..., integrator="direct") once its options are checked and its features decided
@@ -340,13 +350,7 @@ def _render_direct(scene: Scene, gpu, features: Features, camera: Camera, width:
     kernel = render_kernel(features)
     grid_m, grid_n = _stratification_grid(spp)
     cam = _camera_data(camera, width, height)
-    # fresh pages would fault one by one as the threads first write them
-    out_rgb = huge_pages.empty((height, width), wp.vec3)
-    out_alpha = huge_pages.empty((height, width), float)
-    aov_shape = (height, width) if features.aovs else (1, 1)
-    out_depth = huge_pages.empty(aov_shape, float)
-    out_normal = huge_pages.empty(aov_shape, wp.vec3)
-    out_albedo = huge_pages.empty(aov_shape, wp.vec3)
+    out_rgb, out_alpha, out_depth, out_normal, out_albedo = _output_buffers(width, height, features.aovs)
     bg = wp.vec3(*background)
     seed = int(seed) % (2**31)
     maps = (build_shadow_maps(scene, gpu, shadow_mode(shadows)[1], threads) if features.shadows == "map"
@@ -415,12 +419,7 @@ def _render_path(scene: Scene, gpu, features: Features, camera: Camera, width: i
     """render(..., integrator="path") once its options are checked and its features decided."""
     kernel = path_kernel(features)
     cam = _camera_data(camera, width, height)
-    out_rgb = huge_pages.empty((height, width), wp.vec3)
-    out_alpha = huge_pages.empty((height, width), float)
-    aov_shape = (height, width) if features.aovs else (1, 1)
-    out_depth = huge_pages.empty(aov_shape, float)
-    out_normal = huge_pages.empty(aov_shape, wp.vec3)
-    out_albedo = huge_pages.empty(aov_shape, wp.vec3)
+    out_rgb, out_alpha, out_depth, out_normal, out_albedo = _output_buffers(width, height, features.aovs)
     env = _environment_arguments(scene, threads)[0] if features.environment else _no_environment()[0]
     lights = light_table(scene, gpu, environment_lights=bool(features.environment))
     rows_taken = wp.zeros(WORK_SLOTS, dtype=wp.int32, device="cpu")
