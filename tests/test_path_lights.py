@@ -20,6 +20,7 @@ from pbrwarp.kernels.random import sample_key, uniform
 
 from goodness_of_fit import chi_square_ok
 from scenes import box, quad
+from test_path_sampling import table_of
 
 DOWN = pw.Camera.look_at(eye=(0.0, 0.0, 4.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y=50.0)
 
@@ -115,17 +116,9 @@ def choose(table: LightTable, seed: int, out: wp.array(dtype=int), probability: 
 
 
 def test_light_choice_with_the_environment_follows_its_probabilities():
-    weights = np.array([2.0, 0.0, 5.0, 1.0, 0.5])  # punctual, area lights, triangles alike
     environment = 0.3
-    pmf = weights / weights.sum()
-    cdf = np.cumsum(pmf)
-    cdf[-1] = 1.0
-    table = LightTable()
-    table.cdf = wp.array(cdf.astype(np.float32), dtype=float, device="cpu")
-    table.pmf = wp.array(pmf.astype(np.float32), dtype=float, device="cpu")
-    table.face = wp.zeros(1, dtype=wp.int32, device="cpu")
-    table.face_pmf = wp.zeros(1, dtype=float, device="cpu")
-    table.count, table.punctual, table.area, table.environment = len(pmf), 2, 3, environment
+    table, pmf = table_of([2.0, 0.0, 5.0, 1.0, 0.5])  # punctual, area lights, triangles alike
+    table.punctual, table.area, table.environment = 2, 3, environment
     count = 200_000
     out = wp.zeros(count, dtype=int, device="cpu")
     probability = wp.zeros(count, dtype=float, device="cpu")
