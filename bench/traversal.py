@@ -175,17 +175,19 @@ def nearest_hit(b: Bvh, o: wp.vec3, d: wp.vec3, t_max: float) -> float:
 
 
 @wp.func
-def random_ray(state: wp.uint32, lo: wp.vec3, hi: wp.vec3):
+def random_ray(i: int, lo: wp.vec3, hi: wp.vec3):
+    """Ray i: an origin uniform in the box [lo, hi], a direction uniform on the sphere. Its own
+    generator per ray: a wp.func gets the state by value, so a state passed in would not advance."""
+    state = wp.rand_init(7, i)
     o = wp.vec3(wp.randf(state, lo[0], hi[0]), wp.randf(state, lo[1], hi[1]), wp.randf(state, lo[2], hi[2]))
     return o, wp.sample_unit_sphere_surface(state)
 
 
 @wp.kernel(enable_backward=False, module="unique")
 def cast_own(b: Bvh, lo: wp.vec3, hi: wp.vec3, rays: int, out: wp.array(dtype=float)):
-    state = wp.rand_init(7)
     total = float(0.0)
-    for _ in range(rays):
-        o, d = random_ray(state, lo, hi)
+    for i in range(rays):
+        o, d = random_ray(i, lo, hi)
         t = nearest_hit(b, o, d, 1.0e6)
         if t < 1.0e6:
             total += t
@@ -194,10 +196,9 @@ def cast_own(b: Bvh, lo: wp.vec3, hi: wp.vec3, rays: int, out: wp.array(dtype=fl
 
 @wp.kernel(enable_backward=False, module="unique")
 def cast_warp(mesh: wp.uint64, lo: wp.vec3, hi: wp.vec3, rays: int, out: wp.array(dtype=float)):
-    state = wp.rand_init(7)
     total = float(0.0)
-    for _ in range(rays):
-        o, d = random_ray(state, lo, hi)
+    for i in range(rays):
+        o, d = random_ray(i, lo, hi)
         q = wp.mesh_query_ray(mesh, o, d, 1.0e6)
         if q.result:
             total += q.t
