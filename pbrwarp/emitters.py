@@ -63,8 +63,12 @@ def light_table(scene, gpu, environment_lights: bool = False) -> LightTable:
     table.count, table.punctual, table.area = built.count, built.punctual, built.area
     table.environment = 0.0
     if environment_lights and scene.environment is not None:
-        table.environment = environment_probability(environment_weight(scene.environment, built.radius),
-                                                    built.total)
+        environment = scene.environment
+        # the texels' mean luminance is kept: scanning them costs more than a small render
+        mean = scene.cache.get("environment mean luminance", _Same(environment.texels),
+                               lambda: mean_luminance(environment.texels))
+        table.environment = environment_probability(
+            environment_weight(mean * float(environment.intensity), built.radius), built.total)
     return table
 
 
@@ -78,16 +82,19 @@ def environment_probability(weight: float, others: float) -> float:
     return float(weight / (weight + others)) if math.isfinite(weight) else 1.0
 
 
-def environment_weight(environment, radius: float) -> float:
-    """The environment's selection weight (module docstring): 4 pi^2 r^2 Y(mean radiance), the mean
-    over solid angle."""
+def environment_weight(mean_radiance: float, radius: float) -> float:
+    """The selection weight of an environment of mean luminance ``mean_radiance`` over solid angle
+    (module docstring): 4 pi^2 r^2 times it, for a bounding sphere of radius ``radius``."""
+    return 4.0 * math.pi ** 2 * max(radius, 1e-30) ** 2 * mean_radiance
+
+
+def mean_luminance(texels: np.ndarray) -> float:
+    """The mean over solid angle of the luminance of equirectangular ``texels`` (H, 2H, 3)."""
     from .kernels.equirect import texel_solid_angles
 
-    texels = environment.texels
     solid_angle = texel_solid_angles(texels.shape[0])
     row_luminance = (texels.astype(np.float64) @ LUMINANCE).sum(axis=1)
-    mean = float(row_luminance @ solid_angle) / (4.0 * math.pi) * float(environment.intensity)
-    return 4.0 * math.pi ** 2 * max(radius, 1e-30) ** 2 * mean
+    return float(row_luminance @ solid_angle) / (4.0 * math.pi)
 
 
 def emissive_materials(scene) -> int:

@@ -104,6 +104,13 @@ def test_the_environment_is_chosen_by_its_share_of_power_and_only_where_it_light
     point, env = 4.0 * math.pi * 2.0, 4.0 * math.pi ** 2 * 2.0 * 0.5
     assert light_table(scene, gpu, environment_lights=True).environment == pytest.approx(env / (env + point), 1e-5)
     assert light_table(scene, gpu, environment_lights=False).environment == 0.0  # a background only
+    # the texels' mean is kept, but a new intensity or another environment counts at once
+    scene.environment.intensity = 3.0
+    assert light_table(scene, gpu, environment_lights=True).environment == pytest.approx(
+        3 * env / (3 * env + point), 1e-5)
+    scene.environment = pw.Environment.uniform((0.25, 0.25, 0.25))
+    assert light_table(scene, gpu, environment_lights=True).environment == pytest.approx(
+        env / (env + 2 * point), 1e-5)
 
 
 # ---------------------------------------------------------------------------- light choice
