@@ -128,6 +128,21 @@ def _positive_int(what: str):
     return parse
 
 
+def _positive_float(what: str):
+    """A parser of finite numbers above 0."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not 0.0 < value < math.inf:
+            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected a number above 0")
+        return value
+
+    return parse
+
+
 def _whole_number(what: str, high: int):
     """A parser of whole numbers from 0 to ``high``."""
 
@@ -304,6 +319,12 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--bounces", type=_whole_number("bounces", MAX_BOUNCES), default=None, metavar="N",
                        help=f"with --integrator path: the most bounces, 0 to {MAX_BOUNCES} (default "
                             f"{DEFAULT_MAX_BOUNCES}: paths of up to {DEFAULT_MAX_BOUNCES + 1} segments)")
+        p.add_argument("--time-budget", type=_positive_float("time budget"), default=None, metavar="SECONDS",
+                       help="with --integrator path: add passes of --spp samples while another fits in this "
+                            "many seconds")
+        p.add_argument("--target-error", type=_positive_float("target error"), default=None, metavar="E",
+                       help="with --integrator path: add passes of --spp samples until the mean relative "
+                            "standard error of the pixels is at most E (e.g. 0.02)")
         p.add_argument("--env", metavar="HDR", default=None,
                        help="light the scene with an equirectangular .hdr/.exr environment, also shown as the "
                             "background unless --background is given (needs pip install 'pbrwarp[env]')")
@@ -400,7 +421,8 @@ def _render_and_save(scene, camera, args, background) -> None:
     width, height = args.size
     options = dict(width=width, height=height, spp=args.spp, shadows=args.shadows, quality=args.quality,
                    visibility=args.visibility, background=background, texture_filter=args.texture_filter,
-                   integrator=args.integrator, max_bounces=args.bounces)
+                   integrator=args.integrator, max_bounces=args.bounces, time_budget=args.time_budget,
+                   target_error=args.target_error)
     if args.explain:
         print(explain(scene, **options))
     frame = render(scene, camera, threads=args.threads, **options)

@@ -193,3 +193,31 @@ def test_frames_without_aovs_accumulate_too(box):
     frame = accumulator.add()
     assert frame.depth is None and frame.normal is None and frame.albedo is None
     np.testing.assert_allclose(frame.rgb, pw.render(scene, camera, spp=4, **options).rgb, rtol=1e-5, atol=1e-7)
+
+
+def test_command_line_time_budget_and_target_error(tmp_path, monkeypatch, capsys):
+    import trimesh
+
+    from pbrwarp import cli
+
+    mesh = tmp_path / "box.obj"
+    trimesh.creation.box().export(mesh)
+    out = tmp_path / "out.npy"
+    asked = []
+    add = progressive.Accumulation.add
+
+    def recorded_add(self, **options):
+        asked.append(options)
+        return add(self, **options)
+
+    monkeypatch.setattr(progressive.Accumulation, "add", recorded_add)
+    base = ["render", str(mesh), "-o", str(out), "--size", "8x6", "--spp", "2", "--integrator", "path"]
+    assert cli.main(base + ["--target-error", "0.5", "--time-budget", "30"]) == 0
+    assert np.load(out).shape == (6, 8, 4)
+    assert asked == [{"time_budget": 30.0, "target_error": 0.5}]
+    for bad in (["--time-budget", "0"], ["--target-error", "nan"], ["--time-budget", "-1"]):
+        assert cli.main(base + bad) == cli.EXIT_USAGE
+        assert "expected a number above 0" in capsys.readouterr().err
+    out.unlink()
+    assert cli.main(base[:-2] + ["--time-budget", "1"]) == cli.EXIT_USAGE  # the direct integrator
+    assert "integrator='path'" in capsys.readouterr().err and not out.exists()
