@@ -61,6 +61,18 @@ examples:
   --light sphere:0,3,0:0.25:800   --light rect:0,3,0:1,0,0:0,0,1:200
 """
 
+BATCH_HELP = """\
+a job is one image, one JSON object a line, with `pbrwarp render`'s options under pw.render's names:
+  {"id": "v0", "scene": "bunny.glb", "output": "out/v0.png", "width": 512, "height": 512, "spp": 4,
+   "camera": {"eye": [0, 1, 3], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40},
+   "environment": null, "lights": ["dir:-1,-1,-1:3"], "seed": 1}
+  camera: {eye, target[, up, fov_y]}, "frame", or {direction[, up, fov_y, margin]} (Camera.frame);
+  relative paths are relative to the jobs file. Jobs whose output is already a whole image are
+  skipped; each finished job appends a line (id, status ok/skipped/error, seconds, worker, error)
+  to the manifest; the exit status is 2 if any job failed. docs/batch.md runs batches on a cluster.
+"""
+
+
 class Terminated(BaseException):
     """SIGTERM, raised in the main thread so that the command unwinds as from Ctrl-C: a save under
     way removes its temporary file. A BaseException, like KeyboardInterrupt, so that no
@@ -85,6 +97,17 @@ def build_parser() -> argparse.ArgumentParser:
                             formatter_class=argparse.RawDescriptionHelpFormatter, epilog=LIGHT_HELP + EXIT_STATUS_HELP)
     add_scene_options(render)
     output_options(render, (800, 600), 1)
+
+    batch = sub.add_parser("batch", help="render the jobs of a JSON-lines file on Dask (pip install 'pbrwarp[batch]')",
+                           formatter_class=argparse.RawDescriptionHelpFormatter, epilog=BATCH_HELP + EXIT_STATUS_HELP)
+    batch.add_argument("jobs", metavar="JOBS.jsonl", help="the jobs, one JSON object (one image) a line")
+    batch.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                       help="a Dask scheduler's address, e.g. tcp://10.0.0.5:8786 (default: a local cluster)")
+    batch.add_argument("--workers", type=positive_int("worker count"), default=None, metavar="N",
+                       help="worker processes of the local cluster, sharing the cores (default 1)")
+    batch.add_argument("--manifest", metavar="PATH", default=None,
+                       help="where each finished job's record is appended (default JOBS.manifest.jsonl)")
+    batch.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP)
 
     demo = sub.add_parser("demo", help="render the built-in demo scene (sphere grid and brick torus)",
                           formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXIT_STATUS_HELP)
@@ -126,6 +149,24 @@ def cmd_demo(args) -> int:
     if args.env is not None:
         scene.environment = load_environment(args)
     render_and_save(scene, camera, args, args.background or (None if scene.environment else DEMO_BACKGROUND))
+    return 0
+
+
+def cmd_batch(args) -> int:
+    from .batch import default_manifest, render_batch
+
+    if args.scheduler is not None and args.workers is not None:
+        raise UsageError("--workers sets the size of the local cluster; with --scheduler the cluster has its own")
+    manifest = args.manifest or default_manifest(args.jobs)
+    records = render_batch(args.jobs, client=args.scheduler, manifest=manifest, workers=args.workers)
+    counts = {status: sum(r["status"] == status for r in records) for status in ("ok", "skipped", "error")}
+    _note(f"{counts['ok']} rendered, {counts['skipped']} skipped (already done), {counts['error']} failed; "
+          f"manifest: {manifest}")
+    failed = [r for r in records if r["status"] == "error"]
+    if failed:
+        _note(f"error: job {failed[0]['id']}: {failed[0]['error']}"
+              + (f" (and {len(failed) - 1} more failed jobs: see the manifest)" if len(failed) > 1 else ""))
+        return EXIT_USAGE
     return 0
 
 
@@ -188,7 +229,7 @@ def _main(argv) -> int:
             return exit_.code if isinstance(exit_.code, int) else 0
         verbose = verbose or args.verbose
         with _warp_messages(verbose):
-            command = {"render": cmd_render, "demo": cmd_demo}[args.command]
+            command = {"render": cmd_render, "demo": cmd_demo, "batch": cmd_batch}[args.command]
             return command(args)
     except (UsageError, PbrwarpError, OSError, ImportError) as err:
         return _fail(EXIT_USAGE, f"error: {one_line(err)}", verbose)

@@ -1,0 +1,262 @@
+"""Batch rendering on a real Dask LocalCluster (two worker processes): the images equal serial
+renders, a second run skips every job, a corrupt scene is one "error" line, a worker killed
+mid-batch loses no image; and the jobs' validation and the message without Dask."""
+
+import concurrent.futures
+import json
+import os
+import shutil
+import signal
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import pbrwarp as pw
+from pbrwarp import batch
+from pbrwarp.cli import main
+from pbrwarp.render_options import parse_light
+from pbrwarp.meshes import SAMPLES
+
+distributed = pytest.importorskip("distributed")
+
+SIZE = 32
+LIMIT = 120  # seconds any one batch may take here before the test fails rather than hang
+BUNNY = "bunny-decimated.off"
+LIGHT = "dir:-1,-1,-1:3"
+
+
+def _within(seconds, function, *args, **kwargs):
+    """function(*args, **kwargs), or a failed test after ``seconds`` (a hang must not stall CI)."""
+    pool = concurrent.futures.ThreadPoolExecutor(1)
+    try:
+        return pool.submit(function, *args, **kwargs).result(timeout=seconds)
+    except concurrent.futures.TimeoutError:
+        pytest.fail(f"{getattr(function, '__name__', function)} took over {seconds} s")
+    finally:
+        pool.shutdown(wait=False)
+
+
+@pytest.fixture(scope="module")
+def client():
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                       silence_logs=40)
+    dask_client = distributed.Client(cluster)
+    dask_client.wait_for_workers(2, timeout=LIMIT)
+    yield dask_client
+    dask_client.close()
+    cluster.close()
+
+
+def _jobs(folder, names, broken=False):
+    """Jobs of 32 x 32 images of the bunny in ``folder`` (with a corrupt scene's job if
+    ``broken``), each seen and lit in its own way, written to folder/jobs.jsonl."""
+    shutil.copy(SAMPLES / BUNNY, folder / BUNNY)
+    kinds = [
+        {"camera": {"eye": [0.0, 0.12, 0.35], "target": [0.0, 0.1, 0.0], "fov_y": 40}, "lights": [LIGHT], "spp": 2},
+        {"camera": "frame", "lights": ["point:0.2,0.4,0.3:0.5:1,0.8,0.6"], "seed": 3},
+        {"camera": {"direction": [1.0, 0.3, 0.5]}, "lights": [LIGHT, "dir:1,-0.5,0:1"], "spp": 2,
+         "shadows": False},
+    ]
+    jobs = [{"id": name, "scene": BUNNY, "output": f"out/{name}.{'npy' if i == 1 else 'png'}", "width": SIZE,
+             "height": SIZE, **kinds[i % len(kinds)]} for i, name in enumerate(names)]
+    if broken:
+        (folder / "broken.glb").write_bytes(b"glTF\x02\x00\x00\x00 not a binary glTF")
+        jobs.insert(1, {"id": "broken", "scene": "broken.glb", "output": "out/broken.png", "width": SIZE,
+                        "height": SIZE, "lights": [LIGHT]})
+    path = folder / "jobs.jsonl"
+    path.write_text("".join(json.dumps(job) + "\n" for job in jobs))
+    return path, jobs
+
+
+def _serial(folder, job):
+    """The job rendered in this process by pw.render, and loaded as the batch output is: (H, W, 3)
+    uint8 for an image, (H, W, 4) float32 for .npy."""
+    scene = pw.Scene.load(folder / job["scene"])
+    for spec in job["lights"]:
+        scene.add_light(parse_light(spec))
+    view = job["camera"]
+    if view == "frame":
+        camera = pw.Camera.frame(scene)
+    elif "direction" in view:
+        camera = pw.Camera.frame(scene, direction=view["direction"])
+    else:
+        camera = pw.Camera.look_at(view["eye"], view["target"], fov_y=view["fov_y"])
+    frame = pw.render(scene, camera, width=SIZE, height=SIZE, spp=job.get("spp", 1), seed=job.get("seed", 0),
+                      shadows=job.get("shadows", True), progress=False)
+    reference = folder / ("reference" + os.path.splitext(job["output"])[1])
+    frame.save(reference)
+    return _read(reference)
+
+
+def _read(path):
+    path = str(path)
+    if path.endswith(".npy"):
+        return np.load(path)
+    with Image.open(path) as image:
+        return np.asarray(image)
+
+
+def _manifest(path):
+    return [json.loads(line) for line in path.read_text().splitlines()]
+
+
+@pytest.fixture(scope="module")
+def first_run(client, tmp_path_factory):
+    """A batch of three bunny jobs and one of a corrupt scene, after the serial renders (which also
+    compile the kernels the workers then find in Warp's cache)."""
+    folder = tmp_path_factory.mktemp("batch")
+    jobs_path, jobs = _jobs(folder, ["front", "framed", "side"], broken=True)
+    references = {job["id"]: _serial(folder, job) for job in jobs if job["id"] != "broken"}
+    records = _within(LIMIT, pw.render_batch, jobs_path, client=client, progress=False)
+    return folder, jobs, references, records
+
+
+def test_batch_images_equal_serial_renders(first_run):
+    folder, jobs, references, records = first_run
+    by_id = {r["id"]: r for r in records}
+    for job_id, reference in references.items():
+        assert by_id[job_id]["status"] == "ok", by_id[job_id]
+        output = _read(folder / next(j["output"] for j in jobs if j["id"] == job_id))
+        assert output.shape == reference.shape
+        assert np.array_equal(output, reference), job_id  # the render does not depend on threads
+
+
+def test_a_corrupt_scene_is_one_error_line_and_the_others_ok(first_run):
+    folder, jobs, _, records = first_run
+    manifest = _manifest(folder / "jobs.manifest.jsonl")
+    assert sorted(line["id"] for line in manifest) == sorted(job["id"] for job in jobs)
+    errors = [line for line in manifest if line["status"] == "error"]
+    assert [line["id"] for line in errors] == ["broken"]
+    assert "broken.glb" in errors[0]["error"]
+    assert all(line["status"] == "ok" and line["worker"].startswith("tcp://") and line["seconds"] > 0
+               for line in manifest if line["id"] != "broken")
+    assert not (folder / "out" / "broken.png").exists()
+    assert [r["id"] for r in records] == [job["id"] for job in jobs]  # the records in the jobs' order
+
+
+def test_running_a_batch_again_skips_every_finished_job(first_run, client):
+    folder, jobs, _, _ = first_run
+    outputs = sorted((folder / "out").iterdir())
+    times = [p.stat().st_mtime_ns for p in outputs]
+    records = _within(LIMIT, pw.render_batch, folder / "jobs.jsonl", client=client, progress=False)
+    assert {r["id"]: r["status"] for r in records} == {
+        job["id"]: "error" if job["id"] == "broken" else "skipped" for job in jobs}
+    assert sorted((folder / "out").iterdir()) == outputs
+    assert [p.stat().st_mtime_ns for p in outputs] == times
+    assert len(_manifest(folder / "jobs.manifest.jsonl")) == 2 * len(jobs)  # appended
+
+
+def test_an_unfinished_output_is_rendered_again(first_run, tmp_path):
+    folder, jobs, _, _ = first_run
+    job = batch.parse_job(jobs[0], str(folder))
+    assert batch.finished(job)
+    whole = (folder / jobs[0]["output"]).read_bytes()
+    truncated = tmp_path / "front.png"
+    truncated.write_bytes(whole[: len(whole) // 2])
+    assert not batch.finished(batch.parse_job({**jobs[0], "output": str(truncated)}, str(folder)))
+    other_size = batch.parse_job({**jobs[0], "width": SIZE + 1}, str(folder))
+    assert not batch.finished(other_size)
+
+
+class _KillOnce(distributed.WorkerPlugin):
+    """Kills (SIGKILL) the worker process that starts the job ``victim``, the first time only
+    (``marker``, created exclusively, records the worker's address)."""
+
+    def __init__(self, victim, marker):
+        self.victim, self.marker = victim, marker
+
+    def setup(self, worker):
+        self.address = worker.address
+
+    def transition(self, key, start, finish, **kwargs):
+        if finish != "executing" or not str(key).startswith(f"pbrwarp-{self.victim}-"):
+            return
+        try:
+            fd = os.open(self.marker, os.O_WRONLY | os.O_CREAT | os.O_EXCL)
+        except FileExistsError:
+            return
+        os.write(fd, self.address.encode())
+        os.close(fd)
+        os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_a_worker_killed_mid_batch_loses_no_image(client, tmp_path):
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers cannot import this file
+    names = [f"view{i}" for i in range(6)]
+    jobs_path, jobs = _jobs(tmp_path, names)
+    marker = tmp_path / "killed"
+    client.register_plugin(_KillOnce("view2", str(marker)), name="kill-once")
+    try:
+        records = _within(LIMIT, pw.render_batch, jobs_path, client=client, progress=False)
+    finally:
+        client.unregister_worker_plugin("kill-once")
+    assert marker.exists(), "the victim's worker was not killed"
+    killed = marker.read_text()
+    assert [(r["id"], r["status"]) for r in records] == [(name, "ok") for name in names]
+    assert next(r for r in records if r["id"] == "view2")["worker"] != killed  # rendered again elsewhere
+    manifest = _manifest(tmp_path / "jobs.manifest.jsonl")
+    assert sorted(line["id"] for line in manifest) == sorted(names)  # one line per job
+    # every image whole, and nothing else in the folder (no temporary file left behind)
+    assert sorted(os.listdir(tmp_path / "out")) == sorted(os.path.basename(job["output"]) for job in jobs)
+    assert all(batch.finished(batch.parse_job(job, str(tmp_path))) for job in jobs)
+
+
+def test_a_worker_keeps_each_scene_loaded_until_its_file_changes(tmp_path):
+    shutil.copy(SAMPLES / BUNNY, tmp_path / BUNNY)
+    path = str(tmp_path / BUNNY)
+    first, _ = batch._loaded_scene(path)
+    assert batch._loaded_scene(path)[0] is first
+    os.utime(path, ns=(0, os.stat(path).st_mtime_ns + 10**9))
+    assert batch._loaded_scene(path)[0] is not first
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"spp": 0}, "'spp': invalid samples per pixel '0'"),
+    ({"width": 0}, "'width/height': invalid size '0x32'"),
+    ({"lights": ["dir:0,0,0:3"]}, "'lights': invalid light 'dir:0,0,0:3'"),
+    ({"lights": "dir:-1,-1,-1:3"}, "'lights' must be a list"),
+    ({"tonemap": "filmic"}, "'tonemap': invalid choice"),
+    ({"shadows": "soft"}, "'shadows' must be"),
+    ({"camera": {"eye": [0, 0, 1], "target": [0, 0, 1]}}, "'camera'"),
+    ({"camera": {"eye": [0, 0, 1]}}, "eye and target required"),
+    ({"camera": {"eye": "here", "target": [0, 0, 0]}}, "'camera' eye"),
+    ({"camera": {"direction": [0, 0, 0]}}, "'camera' direction"),
+    ({"camera": "orbit"}, "'camera' must be"),
+    ({"spq": 4}, "unknown key 'spq'"),
+    ({"scene": "missing.obj"}, "scene file not found"),
+    ({"environment": "sky.png"}, "not found"),
+    ({"output": "out/image.xyz"}, "unknown image extension"),
+    ({"id": None}, "needs an \"id\""),
+])
+def test_a_bad_job_is_an_error_record_naming_what_is_wrong(tmp_path, change, words):
+    shutil.copy(SAMPLES / BUNNY, tmp_path / BUNNY)
+    good = {"id": "good", "scene": BUNNY, "output": "out/good.png", "width": SIZE, "height": SIZE}
+    (bad,) = [r for r in batch.read_jobs([good, {**good, "id": "bad", "output": "out/bad.png", **change}], tmp_path)
+              if not isinstance(r, batch.Job)]
+    assert bad["status"] == "error" and words in bad["error"], bad["error"]
+
+
+def test_jobs_file_lines_that_are_not_jobs_or_repeat_an_output_are_errors(tmp_path):
+    shutil.copy(SAMPLES / BUNNY, tmp_path / BUNNY)
+    good = {"id": "a", "scene": BUNNY, "output": "out/a.png"}
+    path = tmp_path / "jobs.jsonl"
+    path.write_text(json.dumps(good) + "\n\n{not json\n" + json.dumps({**good, "id": "b"}) + "\n[1]\n")
+    parsed = batch.read_jobs(path)
+    assert isinstance(parsed[0], batch.Job) and parsed[0].output == str(tmp_path / "out" / "a.png")
+    assert [(r["id"], r["error"].split(":")[0]) for r in parsed[1:]] == [
+        ("line 3", f"line 3 of {path} is not JSON"), ("b", "its output is that of the job on line 1"),
+        ("line 5", "a job must be a JSON object, got list")]
+
+
+def test_without_dask_the_batch_says_what_to_install(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed raises ImportError
+    jobs = tmp_path / "jobs.jsonl"
+    jobs.write_text("")
+    with pytest.raises(ImportError, match=r'pip install "pbrwarp\[batch\]"'):
+        pw.render_batch(jobs)
+    assert main(["batch", str(jobs)]) == 2
+    assert 'pip install "pbrwarp[batch]"' in capsys.readouterr().err
