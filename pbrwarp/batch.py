@@ -33,6 +33,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import json
+import math
 import os
 import socket
 import sys
@@ -40,6 +41,8 @@ import threading
 import time
 import warnings
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from . import render_options, validate
 from .camera import Camera, field_of_view
@@ -463,8 +466,9 @@ class _client:
 
         workers = self._workers or 1
         cores = os.cpu_count() or 1
+        # ":0": the scheduler's web server (the dashboard, with Bokeh) on a free port, clashing with no other
         cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                           dashboard_address=None, silence_logs=logging.ERROR)
+                                           dashboard_address=":0", silence_logs=logging.ERROR)
         self._opened.append(cluster)
         client = distributed.Client(cluster)
         self._opened.append(client)
@@ -483,3 +487,109 @@ def _progress_bar(total: int, enabled):
     except ImportError:
         return None
     return tqdm(total=total, unit="image", desc="batch", file=sys.stderr, dynamic_ncols=True)
+
+
+# ---------------------------------------------------------------------- generators
+def orbit_directions(views: int, elevation: float) -> list[tuple[float, float, float]]:
+    """``views`` unit vectors from a target towards the eye, evenly spaced in azimuth around +Y
+    from +Z (counter-clockwise seen from above), ``elevation`` degrees above the horizon."""
+    if isinstance(views, bool) or not isinstance(views, int) or views < 1:
+        raise InputError(f"views must be a whole number >= 1, got {views!r}")
+    up = math.radians(validate.finite_scalar(elevation, "elevation"))
+    if not abs(up) < math.pi / 2:
+        raise InputError(f"elevation must lie strictly between -90 and 90 degrees, got {elevation}")
+    return [(math.cos(up) * math.sin(2 * math.pi * i / views), math.sin(up),
+             math.cos(up) * math.cos(2 * math.pi * i / views)) for i in range(views)]
+
+
+def _view_names(views: int) -> list[str]:
+    digits = max(3, len(str(views - 1)))
+    return [f"view-{i:0{digits}d}" for i in range(views)]
+
+
+def turntable_jobs(model, views: int, folder, elevation: float = 20.0, fov_y: float = 45.0, ext: str = ".png",
+                   options: dict | None = None) -> list[dict]:
+    """Jobs of ``views`` images of ``model`` from eyes evenly spaced on a circle around the
+    centre of its bounds, ``elevation`` degrees above it, all at the distance at which the
+    bounds' sphere fits the view (``fov_y`` vertically, and horizontally at the jobs' aspect),
+    written to ``folder``/view-NNN``ext``; paths relative to ``folder`` (where the jobs file
+    goes). ``options``: further job keys for every job (width, height, lights, ...)."""
+    from .scene import Scene
+
+    options = dict(options or {})
+    scene = Scene.load(model)
+    lo, hi = scene.bounds()
+    centre, radius = (lo + hi) / 2.0, max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-6)
+    half = math.radians(field_of_view(fov_y)) / 2.0
+    aspect = options.get("width", 800) / options.get("height", 600)
+    narrowest = min(half, math.atan(math.tan(half) * aspect))
+    distance = radius / math.sin(narrowest)
+    scene_path = os.path.relpath(os.path.abspath(model), os.path.abspath(folder))
+    return [{"id": name, "scene": scene_path, "output": name + ext,
+             "camera": {"eye": [float(c) for c in centre + distance * np.asarray(direction)],
+                        "target": [float(c) for c in centre], "up": [0.0, 1.0, 0.0], "fov_y": float(fov_y)},
+             **options}
+            for name, direction in zip(_view_names(views), orbit_directions(views, elevation))]
+
+
+def folder_jobs(source, views: int, folder, elevation: float = 20.0, ext: str = ".png",
+                options: dict | None = None) -> list[dict]:
+    """Jobs of ``views`` images of every scene file under ``source`` (sub-folders included,
+    in name order), each framed by Camera.frame from directions evenly spaced around it,
+    ``elevation`` degrees up; scene S's view NNN goes to ``folder``/S/view-NNN``ext`` (S the
+    file's path under ``source``, extension kept). Paths relative to ``folder``. InputError if
+    ``source`` holds no scene file."""
+    from .scene import LOADABLE
+
+    source = os.path.abspath(os.fspath(source))
+    if not os.path.isdir(source):
+        raise InputError(f"{source} is not a folder")
+    scenes = sorted(os.path.join(parent, name) for parent, _, names in os.walk(source) for name in names
+                    if os.path.splitext(name)[1].lower() in LOADABLE)
+    if not scenes:
+        raise InputError(f"no scene file ({' '.join(LOADABLE)}) under {source}")
+    directions = orbit_directions(views, elevation)
+    jobs = []
+    for path in scenes:
+        name = os.path.relpath(path, source).replace(os.sep, "/")
+        jobs += [{"id": f"{name}/{view}", "scene": os.path.relpath(path, os.path.abspath(folder)),
+                  "output": f"{name}/{view}{ext}", "camera": {"direction": list(direction)}, **(options or {})}
+                 for view, direction in zip(_view_names(views), directions)]
+    return jobs
+
+
+def job_options(args, parser, folder) -> dict:
+    """The job keys of the `pbrwarp render` options parsed into ``args`` by ``parser`` that
+    differ from their defaults (``args.light``: the light specs as given), for a jobs file in
+    ``folder`` (the environment's path made relative to it)."""
+    found = {}
+    for key, flag in _OPTION_FLAGS.items():
+        dest = flag[2:].replace("-", "_")
+        value = getattr(args, dest)
+        if value != parser.get_default(dest):
+            found[key] = list(value) if isinstance(value, tuple) else value
+    if "environment" in found:
+        found["environment"] = os.path.relpath(os.path.abspath(found["environment"]), os.path.abspath(folder))
+    if args.size != parser.get_default("size"):
+        found["width"], found["height"] = args.size
+    if args.shadows is not True:
+        found["shadows"] = args.shadows
+    if args.transparent:
+        found["transparent"] = True
+    if args.light:
+        found["lights"] = list(args.light)
+    return found
+
+
+def write_jobs(path, jobs) -> None:
+    """Write ``jobs`` (dicts) to ``path`` as JSON lines, atomically."""
+    path = os.fspath(path)
+    temporary = f"{path}.{os.getpid()}.tmp"
+    try:
+        with open(temporary, "w", encoding="utf-8") as f:
+            f.writelines(json.dumps(job) + "\n" for job in jobs)
+        os.replace(temporary, path)
+    except BaseException:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+        raise

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import re
 import signal
 import sys
@@ -21,10 +22,10 @@ import warnings
 
 from . import startup
 from .errors import PbrwarpError
-from .render_options import (Parser, UsageError, add_output_options, add_scene_options, check_output,
-                             choose_camera, light_scene, load_environment, one_line, positive_int, render_and_save)
-# cli.MAX_SIDE and cli.parse_light, as docs/limits.md and the tests name them
-from .render_options import MAX_SIDE, parse_light  # noqa: F401
+from .render_options import (Parser, UsageError, add_image_options, add_output_options, add_scene_options,
+                             check_output, choose_camera, finite_float, light_scene, load_environment, one_line,
+                             parse_fov, parse_light, positive_int, render_and_save)
+from .render_options import MAX_SIDE  # noqa: F401 - cli.MAX_SIDE, as docs/limits.md names it
 
 PROG = "pbrwarp"
 EXIT_INTERNAL_ERROR = 1
@@ -73,6 +74,11 @@ a job is one image, one JSON object a line, with `pbrwarp render`'s options unde
 """
 
 
+# The jobs file the batch generators write into their output folder.
+GENERATED_JOBS = "jobs.jsonl"
+GENERATORS = ("turntable", "folder")
+
+
 class Terminated(BaseException):
     """SIGTERM, raised in the main thread so that the command unwinds as from Ctrl-C: a save under
     way removes its temporary file. A BaseException, like KeyboardInterrupt, so that no
@@ -98,16 +104,46 @@ def build_parser() -> argparse.ArgumentParser:
     add_scene_options(render)
     output_options(render, (800, 600), 1)
 
+    def batch_options(p):
+        p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                       help="a Dask scheduler's address, e.g. tcp://10.0.0.5:8786 (default: a local cluster)")
+        p.add_argument("--workers", type=positive_int("worker count"), default=None, metavar="N",
+                       help="worker processes of the local cluster, sharing the cores (default 1)")
+        p.add_argument("--manifest", metavar="PATH", default=None,
+                       help="where each finished job's record is appended (default JOBS.manifest.jsonl)")
+        p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP)
+
     batch = sub.add_parser("batch", help="render the jobs of a JSON-lines file on Dask (pip install 'pbrwarp[batch]')",
                            formatter_class=argparse.RawDescriptionHelpFormatter, epilog=BATCH_HELP + EXIT_STATUS_HELP)
     batch.add_argument("jobs", metavar="JOBS.jsonl", help="the jobs, one JSON object (one image) a line")
-    batch.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                       help="a Dask scheduler's address, e.g. tcp://10.0.0.5:8786 (default: a local cluster)")
-    batch.add_argument("--workers", type=positive_int("worker count"), default=None, metavar="N",
-                       help="worker processes of the local cluster, sharing the cores (default 1)")
-    batch.add_argument("--manifest", metavar="PATH", default=None,
-                       help="where each finished job's record is appended (default JOBS.manifest.jsonl)")
-    batch.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP)
+    batch_options(batch)
+
+    def generator_options(p, what):
+        p.add_argument("-o", "--output", required=True, metavar="DIR",
+                       help=f"folder of the images and of the jobs file, {GENERATED_JOBS} (created if missing)")
+        p.add_argument("--views", type=positive_int("view count"), required=True, metavar="N",
+                       help=f"views of {what}, evenly spaced around it")
+        p.add_argument("--elevation", type=finite_float("elevation", -90.0, 90.0), default=20.0, metavar="DEG",
+                       help="height of the views above the horizon in degrees, -90 to 90 exclusive (default 20)")
+        p.add_argument("--format", choices=("png", "jpg", "webp", "tiff", "npy"), default="png",
+                       help="image format (default png; npy: linear float32 RGBA)")
+        p.add_argument("--light", type=light_spec, action="append", default=[], metavar="SPEC",
+                       help="add a light to every view (repeatable); see `pbrwarp render --help`")
+        p.add_argument("--plan", action="store_true", help="write the jobs file only, render nothing")
+        add_image_options(p, (512, 512), 1)
+        batch_options(p)
+        p.set_defaults(generator=p)  # for its options' defaults
+
+    turntable = sub.add_parser("batch turntable", help="render N views around a model (a turntable) on Dask",
+                               formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXIT_STATUS_HELP)
+    turntable.add_argument("model", metavar="MODEL", help="scene file (.glb .gltf .obj .ply .stl .off)")
+    generator_options(turntable, "the model, all at the distance at which its bounds fit the view")
+    turntable.add_argument("--fov", type=parse_fov, default=45.0, metavar="DEG",
+                           help="vertical field of view in degrees (default 45)")
+    folder = sub.add_parser("batch folder", help="render N views of every scene file under a folder on Dask",
+                            formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXIT_STATUS_HELP)
+    folder.add_argument("source", metavar="DIR", help="folder of scene files (sub-folders included)")
+    generator_options(folder, "each scene, each framing the scene")
 
     demo = sub.add_parser("demo", help="render the built-in demo scene (sphere grid and brick torus)",
                           formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXIT_STATUS_HELP)
@@ -152,13 +188,41 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def light_spec(text: str) -> str:
+    """A --light spec as given, once parse_light accepts it (a job holds the spec)."""
+    parse_light(text)
+    return text
+
+
 def cmd_batch(args) -> int:
+    return _run_batch(args.jobs, args)
+
+
+def cmd_generate(args) -> int:
+    from . import batch
+
+    if args.explain:
+        raise UsageError("--explain applies to one render: run `pbrwarp render --explain` on one view")
+    os.makedirs(args.output, exist_ok=True)
+    options = batch.job_options(args, args.generator, args.output)
+    ext = "." + args.format
+    if args.command == "batch turntable":
+        jobs = batch.turntable_jobs(args.model, args.views, args.output, args.elevation, args.fov, ext, options)
+    else:
+        jobs = batch.folder_jobs(args.source, args.views, args.output, args.elevation, ext, options)
+    path = os.path.join(args.output, GENERATED_JOBS)
+    batch.write_jobs(path, jobs)
+    _note(f"wrote {len(jobs)} jobs to {path}")
+    return 0 if args.plan else _run_batch(path, args)
+
+
+def _run_batch(jobs, args) -> int:
     from .batch import default_manifest, render_batch
 
     if args.scheduler is not None and args.workers is not None:
         raise UsageError("--workers sets the size of the local cluster; with --scheduler the cluster has its own")
-    manifest = args.manifest or default_manifest(args.jobs)
-    records = render_batch(args.jobs, client=args.scheduler, manifest=manifest, workers=args.workers)
+    manifest = args.manifest or default_manifest(jobs)
+    records = render_batch(jobs, client=args.scheduler, manifest=manifest, workers=args.workers)
     counts = {status: sum(r["status"] == status for r in records) for status in ("ok", "skipped", "error")}
     _note(f"{counts['ok']} rendered, {counts['skipped']} skipped (already done), {counts['error']} failed; "
           f"manifest: {manifest}")
@@ -218,9 +282,18 @@ def _glue_negative_values(argv: list[str]) -> list[str]:
     return out
 
 
+def _join_generator_commands(argv: list[str]) -> list[str]:
+    """"batch turntable ..." as the command "batch turntable" (likewise folder): `batch` alone
+    takes a jobs file in the same place."""
+    first = next((i for i, token in enumerate(argv) if not token.startswith("-")), len(argv))
+    if first + 1 < len(argv) and argv[first] == "batch" and argv[first + 1] in GENERATORS:
+        return argv[:first] + [f"batch {argv[first + 1]}"] + argv[first + 2:]
+    return argv
+
+
 def _main(argv) -> int:
     parser = build_parser()
-    argv = _glue_negative_values(list(sys.argv[1:] if argv is None else argv))
+    argv = _join_generator_commands(_glue_negative_values(list(sys.argv[1:] if argv is None else argv)))
     verbose = startup.verbose_from_environment()
     try:
         try:
@@ -229,7 +302,8 @@ def _main(argv) -> int:
             return exit_.code if isinstance(exit_.code, int) else 0
         verbose = verbose or args.verbose
         with _warp_messages(verbose):
-            command = {"render": cmd_render, "demo": cmd_demo, "batch": cmd_batch}[args.command]
+            command = {"render": cmd_render, "demo": cmd_demo, "batch": cmd_batch, "batch turntable": cmd_generate,
+                       "batch folder": cmd_generate}[args.command]
             return command(args)
     except (UsageError, PbrwarpError, OSError, ImportError) as err:
         return _fail(EXIT_USAGE, f"error: {one_line(err)}", verbose)

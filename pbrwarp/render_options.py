@@ -92,7 +92,7 @@ def _whole_number(what: str, high: int):
     return parse
 
 
-def _finite_float(what: str, low: float = -FLOAT32_MAX, high: float = FLOAT32_MAX):
+def finite_float(what: str, low: float = -FLOAT32_MAX, high: float = FLOAT32_MAX):
     """A parser of numbers from ``low`` to ``high`` (by default, any float32 value)."""
 
     expected = ("a finite number" if (low, high) == (-FLOAT32_MAX, FLOAT32_MAX)
@@ -214,6 +214,12 @@ def add_output_options(p, default_size, default_spp) -> None:
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output image; the extension picks the format (.png, .jpg, ... tone mapped; "
                         ".npy: linear float32 RGBA)")
+    add_image_options(p, default_size, default_spp)
+
+
+def add_image_options(p, default_size, default_spp) -> None:
+    """``add_output_options``' options but the output's path: the image's size and samples, and
+    the render's options."""
     p.add_argument("--size", type=parse_size, default=default_size, metavar="WxH",
                    help=f"image size in pixels, each side 1 to {MAX_SIDE} "
                         f"(default {default_size[0]}x{default_size[1]})")
@@ -221,7 +227,7 @@ def add_output_options(p, default_size, default_spp) -> None:
                    help=f"samples per pixel (default {default_spp})")
     p.add_argument("--tonemap", choices=("none", "reinhard", "aces"), default="aces",
                    help="tone map for 8-bit output (default aces)")
-    p.add_argument("--exposure", type=_finite_float("exposure", -MAX_EXPOSURE, MAX_EXPOSURE), default=0.0,
+    p.add_argument("--exposure", type=finite_float("exposure", -MAX_EXPOSURE, MAX_EXPOSURE), default=0.0,
                    metavar="EV", help=f"exposure in stops from {-MAX_EXPOSURE:g} to {MAX_EXPOSURE:g}: "
                                       "radiance is scaled by 2^EV (default 0)")
     p.add_argument("--no-shadows", dest="shadows", action="store_const", const=False, default=True,
@@ -250,7 +256,7 @@ def add_output_options(p, default_size, default_spp) -> None:
     p.add_argument("--env", metavar="HDR", default=None,
                    help="light the scene with an equirectangular .hdr/.exr environment, also shown as the "
                         "background unless --background is given (needs pip install 'pbrwarp[env]')")
-    p.add_argument("--env-intensity", type=_finite_float("environment intensity", 0.0), default=1.0, metavar="X",
+    p.add_argument("--env-intensity", type=finite_float("environment intensity", 0.0), default=1.0, metavar="X",
                    help="scale of the environment's radiance, >= 0 (default 1)")
     p.add_argument("--explain", action="store_true",
                    help="print which effects are simulated and why the others are not, then render")

@@ -40,7 +40,7 @@ def _within(seconds, function, *args, **kwargs):
 
 @pytest.fixture(scope="module")
 def client():
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
                                        silence_logs=40)
     dask_client = distributed.Client(cluster)
     dask_client.wait_for_workers(2, timeout=LIMIT)
@@ -260,3 +260,68 @@ def test_without_dask_the_batch_says_what_to_install(tmp_path, monkeypatch, caps
         pw.render_batch(jobs)
     assert main(["batch", str(jobs)]) == 2
     assert 'pip install "pbrwarp[batch]"' in capsys.readouterr().err
+
+
+def test_the_cli_renders_a_turntable_against_a_scheduler_address(client, tmp_path, capsys):
+    shutil.copy(SAMPLES / BUNNY, tmp_path / BUNNY)
+    out = tmp_path / "turntable"
+    argv = ["batch", "turntable", str(tmp_path / BUNNY), "--views", "3", "-o", str(out), "--size", "32x24",
+            "--light", LIGHT]
+    assert main(argv + ["--plan"]) == 0
+    assert not list(out.glob("*.png"))
+    jobs = [json.loads(line) for line in (out / "jobs.jsonl").read_text().splitlines()]
+    assert [job["id"] for job in jobs] == ["view-000", "view-001", "view-002"]
+    assert all(job["lights"] == [LIGHT] and (job["width"], job["height"]) == (32, 24) for job in jobs)
+    # the eyes: on a circle about the bounds' centre, 120 degrees apart from +Z, 20 degrees up, at
+    # the distance where the bounds' sphere spans the (narrower, vertical) 45 degree view
+    lo, hi = pw.Scene.load(tmp_path / BUNNY).bounds()
+    centre, radius = (lo + hi) / 2, np.linalg.norm(hi - lo) / 2
+    eyes = np.array([job["camera"]["eye"] for job in jobs]) - centre
+    distance = np.linalg.norm(eyes, axis=1)
+    np.testing.assert_allclose(radius / distance, np.sin(np.radians(22.5)), rtol=1e-9)
+    np.testing.assert_allclose(np.degrees(np.arcsin(eyes[:, 1] / distance)), 20.0, rtol=1e-9)
+    np.testing.assert_allclose(np.degrees(np.arctan2(eyes[:, 0], eyes[:, 2])), [0.0, 120.0, -120.0], atol=1e-9)
+    assert all(np.allclose(job["camera"]["target"], centre) for job in jobs)
+
+    address = client.scheduler_info()["address"]
+    capsys.readouterr()
+    assert _within(LIMIT, main, argv + ["--scheduler", address]) == 0
+    assert "3 rendered, 0 skipped (already done), 0 failed" in capsys.readouterr().err
+    for job in jobs:
+        with Image.open(out / job["output"]) as image:
+            assert image.size == (32, 24)
+    assert main(argv + ["--scheduler", address, "--workers", "2"]) == 2
+    assert "--workers sets the size of the local cluster" in capsys.readouterr().err
+
+
+def test_the_folder_generator_plans_views_of_every_scene_under_a_folder(tmp_path, capsys):
+    library = tmp_path / "library"
+    (library / "sub").mkdir(parents=True)
+    shutil.copy(SAMPLES / BUNNY, library / "a.off")
+    shutil.copy(SAMPLES / BUNNY, library / "sub" / "b.off")
+    (library / "notes.txt").write_text("not a scene")
+    out = tmp_path / "out"
+    assert main(["batch", "folder", str(library), "--views", "2", "-o", str(out), "--format", "npy", "--plan"]) == 0
+    jobs = [json.loads(line) for line in (out / "jobs.jsonl").read_text().splitlines()]
+    assert [(job["id"], job["scene"], job["output"]) for job in jobs] == [
+        ("a.off/view-000", "../library/a.off", "a.off/view-000.npy"),
+        ("a.off/view-001", "../library/a.off", "a.off/view-001.npy"),
+        ("sub/b.off/view-000", "../library/sub/b.off", "sub/b.off/view-000.npy"),
+        ("sub/b.off/view-001", "../library/sub/b.off", "sub/b.off/view-001.npy")]
+    directions = np.array([job["camera"]["direction"] for job in jobs[:2]])
+    np.testing.assert_allclose(directions @ [0.0, 1.0, 0.0], np.sin(np.radians(20.0)))
+    # azimuths 180 degrees apart: cos(20)^2 cos(180) + sin(20)^2
+    np.testing.assert_allclose(directions[0] @ directions[1], -np.cos(np.radians(40.0)), atol=1e-12)
+    assert all(isinstance(job, batch.Job) for job in batch.read_jobs(out / "jobs.jsonl"))
+    assert main(["batch", "folder", str(tmp_path / "out"), "--views", "2", "-o", str(out), "--plan"]) == 2
+    assert "no scene file" in capsys.readouterr().err
+
+
+def test_without_a_client_the_batch_starts_and_closes_a_local_cluster(tmp_path):
+    shutil.copy(SAMPLES / BUNNY, tmp_path / BUNNY)
+    job = {"id": 7, "scene": BUNNY, "output": "seven.png", "width": SIZE, "height": SIZE, "lights": [LIGHT]}
+    manifest = tmp_path / "done.jsonl"
+    records = _within(LIMIT, pw.render_batch, [job], manifest=manifest, workers=1, root=tmp_path, progress=False)
+    assert [(r["id"], r["status"]) for r in records] == [("7", "ok")]
+    assert _manifest(manifest) == records
+    assert batch.finished(batch.parse_job(job, str(tmp_path)))
