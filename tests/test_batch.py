@@ -161,17 +161,19 @@ def test_an_unfinished_output_is_rendered_again(first_run, tmp_path):
 
 
 class _KillOnce(distributed.WorkerPlugin):
-    """Kills (SIGKILL) the worker process that starts the job ``victim``, the first time only
-    (``marker``, created exclusively, records the worker's address)."""
+    """Kills (SIGKILL) the worker process whose job ``victim`` enters the state ``moment``
+    ("executing": it starts; "memory": it has returned, its image written, and the scheduler is
+    yet to hear of it), the first time only (``marker``, created exclusively, records the
+    worker's address)."""
 
-    def __init__(self, victim, marker):
-        self.victim, self.marker = victim, marker
+    def __init__(self, victim, moment, marker):
+        self.victim, self.moment, self.marker = victim, moment, marker
 
     def setup(self, worker):
         self.address = worker.address
 
     def transition(self, key, start, finish, **kwargs):
-        if finish != "executing" or not str(key).startswith(f"pbrwarp-{self.victim}-"):
+        if finish != self.moment or not str(key).startswith(f"pbrwarp-{self.victim}-"):
             return
         try:
             fd = os.open(self.marker, os.O_WRONLY | os.O_CREAT | os.O_EXCL)
@@ -182,14 +184,16 @@ class _KillOnce(distributed.WorkerPlugin):
         os.kill(os.getpid(), signal.SIGKILL)
 
 
-def test_a_worker_killed_mid_batch_loses_no_image(client, tmp_path):
+@pytest.mark.parametrize("moment", ["executing", "memory"])
+def test_a_worker_killed_mid_batch_loses_no_image(client, tmp_path, moment):
     import cloudpickle
 
     cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers cannot import this file
+    client.wait_for_workers(2, timeout=LIMIT)  # the last test's victim restarted
     names = [f"view{i}" for i in range(6)]
     jobs_path, jobs = _jobs(tmp_path, names)
     marker = tmp_path / "killed"
-    client.register_plugin(_KillOnce("view2", str(marker)), name="kill-once")
+    client.register_plugin(_KillOnce("view2", moment, str(marker)), name="kill-once")
     try:
         records = _within(LIMIT, pw.render_batch, jobs_path, client=client, progress=False)
     finally:
@@ -198,6 +202,7 @@ def test_a_worker_killed_mid_batch_loses_no_image(client, tmp_path):
     killed = marker.read_text()
     assert [(r["id"], r["status"]) for r in records] == [(name, "ok") for name in names]
     assert next(r for r in records if r["id"] == "view2")["worker"] != killed  # rendered again elsewhere
+    # (killed after writing its image, the worker's job is rendered and written again: harmless)
     manifest = _manifest(tmp_path / "jobs.manifest.jsonl")
     assert sorted(line["id"] for line in manifest) == sorted(names)  # one line per job
     # every image whole, and nothing else in the folder (no temporary file left behind)
