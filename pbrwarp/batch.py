@@ -47,6 +47,7 @@ import numpy as np
 from . import render_options, validate
 from .camera import Camera, field_of_view
 from .errors import InputError, PbrwarpError
+from .parallel import cores
 from .render import render
 from .scene_cache import Cache
 
@@ -465,14 +466,13 @@ class _client:
         import logging
 
         workers = self._workers or 1
-        cores = os.cpu_count() or 1
         # ":0": the scheduler's web server (the dashboard, with Bokeh) on a free port, clashing with no other
         cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                            dashboard_address=":0", silence_logs=logging.ERROR)
         self._opened.append(cluster)
         client = distributed.Client(cluster)
         self._opened.append(client)
-        return client, max(1, cores // workers)
+        return client, max(1, cores() // workers)
 
     def __exit__(self, *exc):
         for opened in reversed(self._opened):

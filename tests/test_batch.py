@@ -219,6 +219,25 @@ def test_a_worker_keeps_each_scene_loaded_until_its_file_changes(tmp_path):
     assert batch._loaded_scene(path)[0] is not first
 
 
+def test_a_worker_keeps_each_environment_until_its_file_or_intensity_changes(tmp_path):
+    from assets import hdr
+
+    shutil.copy(SAMPLES / BUNNY, tmp_path / BUNNY)
+    shutil.copy(hdr("studio_small_03"), tmp_path / "sky.hdr")
+    job = {"id": 1, "scene": BUNNY, "output": "one.png", "environment": "sky.hdr"}
+
+    def environment(**change):
+        return batch._loaded_environment(batch.parse_job({**job, **change}, str(tmp_path)).args)
+
+    first = environment()
+    assert environment() is first
+    brighter = environment(env_intensity=2.0)
+    assert brighter is not first and brighter.intensity == 2.0
+    path = str(tmp_path / "sky.hdr")
+    os.utime(path, ns=(0, os.stat(path).st_mtime_ns + 10**9))
+    assert environment() is not first
+
+
 @pytest.mark.parametrize("change, words", [
     ({"spp": 0}, "'spp': invalid samples per pixel '0'"),
     ({"width": 0}, "'width/height': invalid size '0x32'"),
@@ -291,7 +310,9 @@ def test_the_cli_renders_a_turntable_against_a_scheduler_address(client, tmp_pat
     address = client.scheduler_info()["address"]
     capsys.readouterr()
     assert _within(LIMIT, main, argv + ["--scheduler", address]) == 0
-    assert "3 rendered, 0 skipped (already done), 0 failed" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "3 rendered, 0 skipped (already done), 0 failed" in err
+    assert "3/3" in err and ("image/s" in err or "s/image" in err)  # the progress bar, with its rate
     for job in jobs:
         with Image.open(out / job["output"]) as image:
             assert image.size == (32, 24)
