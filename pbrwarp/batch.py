@@ -8,7 +8,7 @@ A job is one image, a JSON object (one per line of a ``.jsonl`` file)::
      "lights": ["dir:-1,-1,-1:3"], "integrator": "path", "seed": 7}
 
 It means what the ``pbrwarp render`` command with those options means, and is parsed by the
-command line's own parser (:mod:`pbrwarp.cli`): ``width``/``height`` (``--size``, default 800 x
+command's own parser (:mod:`pbrwarp.render_options`): ``width``/``height`` (``--size``, default 800 x
 600), ``spp``, ``environment`` (``--env``, a path or null), ``env_intensity``, ``lights`` (a list
 of ``--light`` specs; the file's own lights are kept), ``shadows`` (true or "rays", "map", false),
 ``background`` ([r, g, b]), ``quality``, ``visibility``, ``texture_filter``, ``integrator``,
@@ -114,6 +114,9 @@ def read_jobs(jobs, root=None) -> list:
                 lines = f.read().splitlines()
         except OSError as err:
             raise InputError(f"cannot read the jobs file {path}: {err.strerror or err}") from None
+        except UnicodeDecodeError as err:
+            raise InputError(f"the jobs file {path} is not UTF-8 text (byte {err.start})") from None
+        label = "line"
         entries = []
         for number, line in enumerate(lines, 1):
             if not line.strip():
@@ -124,22 +127,25 @@ def read_jobs(jobs, root=None) -> list:
                 entries.append((number, InputError(f"line {number} of {path} is not JSON: {err.msg}")))
     else:
         root = os.path.abspath(os.getcwd() if root is None else os.fspath(root))
+        label = "job"
         entries = list(enumerate(jobs, 1))
     parsed, ids, outputs = [], {}, {}
     for number, entry in entries:
         job_id = entry.get("id") if isinstance(entry, dict) else None
-        name = str(job_id) if isinstance(job_id, (str, int)) and not isinstance(job_id, bool) else f"line {number}"
+        name = str(job_id) if isinstance(job_id, (str, int)) and not isinstance(job_id, bool) else f"{label} {number}"
         try:
             if isinstance(entry, Exception):
                 raise entry
             job = parse_job(entry, root)
             for seen, key, what in ((ids, job.id, "id"), (outputs, os.path.normcase(job.output), "output")):
                 if key in seen:
-                    raise InputError(f"its {what} is that of the job on line {seen[key]}")
+                    raise InputError(f"its {what} is that of {label} {seen[key]}")
                 seen[key] = number
             parsed.append(job)
         except (PbrwarpError, render_options.UsageError, OSError) as err:
-            parsed.append(_record(name, "error", error=render_options.one_line(err)))
+            output = entry.get("output") if isinstance(entry, dict) else None
+            output = os.path.normpath(os.path.join(root, output)) if isinstance(output, str) and output else None
+            parsed.append(_record(name, "error", output, error=render_options.one_line(err)))
     return parsed
 
 

@@ -272,8 +272,12 @@ def test_jobs_file_lines_that_are_not_jobs_or_repeat_an_output_are_errors(tmp_pa
     parsed = batch.read_jobs(path)
     assert isinstance(parsed[0], batch.Job) and parsed[0].output == str(tmp_path / "out" / "a.png")
     assert [(r["id"], r["error"].split(":")[0]) for r in parsed[1:]] == [
-        ("line 3", f"line 3 of {path} is not JSON"), ("b", "its output is that of the job on line 1"),
+        ("line 3", f"line 3 of {path} is not JSON"), ("b", "its output is that of line 1"),
         ("line 5", "a job must be a JSON object, got list")]
+    assert parsed[2]["output"] == parsed[0].output  # the error's record names the output it was to write
+    path.write_bytes(b'{"id": "\xff"}\n')
+    with pytest.raises(pw.InputError, match="not UTF-8"):
+        batch.read_jobs(path)
 
 
 def test_without_dask_the_batch_says_what_to_install(tmp_path, monkeypatch, capsys):
@@ -351,3 +355,9 @@ def test_without_a_client_the_batch_starts_and_closes_a_local_cluster(tmp_path):
     assert [(r["id"], r["status"]) for r in records] == [("7", "ok")]
     assert _manifest(manifest) == records
     assert batch.finished(batch.parse_job(job, str(tmp_path)))
+
+
+def test_a_jobs_file_that_cannot_be_read_is_one_line_exit_2(tmp_path, capsys):
+    assert main(["batch", str(tmp_path / "missing.jsonl")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot read the jobs file" in err and "missing.jsonl" in err
