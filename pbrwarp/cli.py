@@ -201,8 +201,6 @@ def cmd_batch(args) -> int:
 def cmd_generate(args) -> int:
     from . import batch
 
-    if args.explain:
-        raise UsageError("--explain applies to one render: run `pbrwarp render --explain` on one view")
     os.makedirs(args.output, exist_ok=True)
     options = batch.job_options(args, args.generator, args.output)
     ext = "." + args.format

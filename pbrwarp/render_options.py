@@ -215,11 +215,13 @@ def add_output_options(p, default_size, default_spp) -> None:
                    help="output image; the extension picks the format (.png, .jpg, ... tone mapped; "
                         ".npy: linear float32 RGBA)")
     add_image_options(p, default_size, default_spp)
+    p.add_argument("--explain", action="store_true",
+                   help="print which effects are simulated and why the others are not, then render")
 
 
 def add_image_options(p, default_size, default_spp) -> None:
-    """``add_output_options``' options but the output's path: the image's size and samples, and
-    the render's options."""
+    """``add_output_options``' options but the output's path and --explain: the image's size and
+    samples, and the render's options (those a batch job can hold)."""
     p.add_argument("--size", type=parse_size, default=default_size, metavar="WxH",
                    help=f"image size in pixels, each side 1 to {MAX_SIDE} "
                         f"(default {default_size[0]}x{default_size[1]})")
@@ -258,8 +260,6 @@ def add_image_options(p, default_size, default_spp) -> None:
                         "background unless --background is given (needs pip install 'pbrwarp[env]')")
     p.add_argument("--env-intensity", type=finite_float("environment intensity", 0.0), default=1.0, metavar="X",
                    help="scale of the environment's radiance, >= 0 (default 1)")
-    p.add_argument("--explain", action="store_true",
-                   help="print which effects are simulated and why the others are not, then render")
 
 
 def add_scene_options(p) -> None:
