@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import shutil
 import statistics
 import sys
 import tempfile
@@ -114,6 +115,7 @@ def main(argv=None):
     finally:
         client.close()
         cluster.close()
+        shutil.rmtree(work, ignore_errors=True)
     row = {"model": os.path.basename(model), "views": args.views, "size": args.size, "spp": args.spp,
            "loop_s_per_image": statistics.median(loop_times), "batch_s_per_image": statistics.median(batch_times),
            "job_s_in_worker": statistics.median(job_seconds), "cluster_startup_s": startup}
