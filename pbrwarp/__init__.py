@@ -47,6 +47,7 @@ from .load_limits import LoadLimits
 from .materials import Material
 from .features import Features
 from .render import Accumulator, explain, render
+from .batch import render_batch
 from .scene import Primitive, Scene
 from .shadow_maps import ShadowMap
 from .textures import Texture
@@ -55,6 +56,6 @@ __all__ = [
     "Accumulator", "AreaLighting", "AssetFormatError", "AssetNotFoundError", "BRDF", "Camera", "DirectionalLight", "Environment", "Features", "Frame", "FrameCheck", "IBL", "InputError",
     "InputTypeError", "LoadLimits", "Material", "PbrwarpError", "PointLight", "Primitive", "RectLight", "ResourceError", "Scene", "ShadowMap",
     "SphereLight", "SpotLight",
-    "Texture", "check", "denoise", "explain", "render",
+    "Texture", "check", "denoise", "explain", "render", "render_batch",
 ]
 __version__ = "0.1.0"

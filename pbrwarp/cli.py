@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 import os
 import re
 import signal
@@ -21,25 +20,18 @@ import threading
 import traceback
 import warnings
 
-import numpy as np
-
 from . import startup
-from .camera import Camera
-from .emitters import emissive_materials
-from .errors import InputError, PbrwarpError
-from .features import DEFAULT_MAX_BOUNCES, MAX_BOUNCES
-from .frame import MAX_EXPOSURE
-from .lights import DirectionalLight, PointLight, RectLight, SphereLight, SpotLight
-from .parallel import MAX_THREADS_PER_CORE
+from .errors import PbrwarpError
+from .render_options import (Parser, UsageError, add_image_options, add_output_options, add_scene_options,
+                             check_output, choose_camera, finite_float, light_scene, load_environment, one_line,
+                             parse_fov, parse_light, positive_int, render_and_save)
+from .render_options import MAX_SIDE  # noqa: F401 - cli.MAX_SIDE, as docs/limits.md names it
 
 PROG = "pbrwarp"
 EXIT_INTERNAL_ERROR = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 128 + signal.SIGINT  # 130, as a shell reports a process Ctrl-C ended
 EXIT_TERMINATED = 128 + signal.SIGTERM  # 143
-MAX_SIDE = 16384  # largest image side accepted from the command line
-FLOAT32_MAX = float(np.finfo(np.float32).max)  # the kernels compute in float32
-DEFAULT_KEY_LUX = 3.0
 
 EXIT_STATUS_HELP = f"""\
 exit status:
@@ -70,9 +62,21 @@ examples:
   --light sphere:0,3,0:0.25:800   --light rect:0,3,0:1,0,0:0,0,1:200
 """
 
+BATCH_HELP = """\
+a job is one image, one JSON object a line, with `pbrwarp render`'s options under pw.render's names:
+  {"id": "v0", "scene": "bunny.glb", "output": "out/v0.png", "width": 512, "height": 512, "spp": 4,
+   "camera": {"eye": [0, 1, 3], "target": [0, 0, 0], "up": [0, 1, 0], "fov_y": 40},
+   "environment": null, "lights": ["dir:-1,-1,-1:3"], "seed": 1}
+  camera: {eye, target[, up, fov_y]}, "frame", or {direction[, up, fov_y, margin]} (Camera.frame);
+  relative paths are relative to the jobs file. Jobs whose output is already a whole image are
+  skipped; each finished job appends a line (id, status ok/skipped/error, seconds, worker, error)
+  to the manifest; the exit status is 2 if any job failed. docs/batch.md runs batches on a cluster.
+"""
 
-class UsageError(Exception):
-    """A command-line value that cannot be used; the message is shown as is."""
+
+# The jobs file the batch generators write into their output folder.
+GENERATED_JOBS = "jobs.jsonl"
+GENERATORS = ("turntable", "folder")
 
 
 class Terminated(BaseException):
@@ -81,270 +85,65 @@ class Terminated(BaseException):
     ``except Exception`` on the way swallows it."""
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse that raises instead of printing usage and exiting, so every error is one line."""
-
-    def error(self, message):
-        raise UsageError(message)
-
-
-# ---------------------------------------------------------------------- value parsers
-def _numbers(text: str, count: int | tuple, what: str, example: str) -> list[float]:
-    counts = (count,) if isinstance(count, int) else count
-    parts = text.split(",")
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        values = None
-    if values is None or len(values) not in counts or not all(abs(v) <= FLOAT32_MAX for v in values):
-        n = " or ".join(map(str, counts))
-        raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected {n} comma-separated finite numbers "
-                                         f"(|x| <= {FLOAT32_MAX:.3g}), e.g. {example}")
-    return values
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    """'WxH' -> (W, H), both whole numbers in 1..MAX_SIDE."""
-    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
-    if not m:
-        raise argparse.ArgumentTypeError(f"invalid size {text!r}: expected WIDTHxHEIGHT in pixels, e.g. 640x480")
-    w, h = int(m.group(1)), int(m.group(2))
-    if not (1 <= w <= MAX_SIDE and 1 <= h <= MAX_SIDE):
-        raise argparse.ArgumentTypeError(
-            f"invalid size {text!r}: width and height must be whole numbers from 1 to {MAX_SIDE}, e.g. 640x480")
-    return w, h
-
-
-def _positive_int(what: str):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = 0
-        if value < 1:
-            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected a whole number >= 1")
-        return value
-
-    return parse
-
-
-def _positive_float(what: str):
-    """A parser of finite numbers above 0."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
-        if not 0.0 < value < math.inf:
-            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected a number above 0")
-        return value
-
-    return parse
-
-
-def _whole_number(what: str, high: int):
-    """A parser of whole numbers from 0 to ``high``."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = -1
-        if not 0 <= value <= high:
-            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected a whole number from 0 to {high}")
-        return value
-
-    return parse
-
-
-def _finite_float(what: str, low: float = -FLOAT32_MAX, high: float = FLOAT32_MAX):
-    """A parser of numbers from ``low`` to ``high`` (by default, any float32 value)."""
-
-    expected = ("a finite number" if (low, high) == (-FLOAT32_MAX, FLOAT32_MAX)
-                else f"a number from {low:.3g} to {high:.3g}")
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"invalid {what} {text!r}: expected {expected}")
-        return value
-
-    return parse
-
-
-def parse_fov(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not 0.0 < value < 180.0:
-        raise argparse.ArgumentTypeError(f"invalid field of view {text!r}: expected degrees strictly between 0 and 180")
-    return value
-
-
-def parse_camera(text: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """'ex,ey,ez,tx,ty,tz' -> (eye, target)."""
-    v = _numbers(text, 6, "camera", "0,1,5,0,0,0 (eye x,y,z then target x,y,z)")
-    eye, target = tuple(v[:3]), tuple(v[3:])
-    if eye == target:
-        raise argparse.ArgumentTypeError(f"invalid camera {text!r}: the eye and the target must differ")
-    return eye, target
-
-
-def parse_colour(text: str) -> tuple[float, float, float]:
-    v = _numbers(text, 3, "colour", "0.1,0.1,0.1 (linear RGB)")
-    if any(c < 0 for c in v):
-        raise argparse.ArgumentTypeError(f"invalid colour {text!r}: components must be >= 0")
-    return tuple(v)
-
-
-def parse_light(spec: str):
-    """A light from 'point:...', 'dir:...', 'spot:...', 'sphere:...' or 'rect:...' (see LIGHT_HELP)."""
-    fields = spec.split(":")
-    kind = fields[0].strip().lower()
-
-    def bad(reason: str):
-        return argparse.ArgumentTypeError(f"invalid light {spec!r}: {reason}")
-
-    def intensity(text: str, unit: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise bad(f"intensity {text!r} is not a number ({unit})") from None
-        if not math.isfinite(value) or value < 0:
-            raise bad(f"intensity must be a finite number >= 0 ({unit}), got {text}")
-        return value
-
-    try:
-        if kind == "point":
-            if len(fields) not in (3, 4):
-                raise bad("expected point:X,Y,Z:CANDELA[:R,G,B]")
-            colour = parse_colour(fields[3]) if len(fields) == 4 else (1.0, 1.0, 1.0)
-            return PointLight(position=_numbers(fields[1], 3, "position", "0,4,3"), color=colour,
-                              intensity=intensity(fields[2], "candela"))
-        if kind in ("dir", "directional"):
-            if len(fields) not in (3, 4):
-                raise bad("expected dir:DX,DY,DZ:LUX[:R,G,B]")
-            direction = _numbers(fields[1], 3, "direction", "-1,-1,-1")
-            if not any(direction):
-                raise bad("the direction must not be 0,0,0")
-            colour = parse_colour(fields[3]) if len(fields) == 4 else (1.0, 1.0, 1.0)
-            return DirectionalLight(direction=direction, color=colour, intensity=intensity(fields[2], "lux"))
-        if kind == "spot":
-            if len(fields) not in (4, 5, 6):
-                raise bad("expected spot:X,Y,Z:DX,DY,DZ:CANDELA[:INNER,OUTER[:R,G,B]]")
-            direction = _numbers(fields[2], 3, "direction", "0,-1,0")
-            if not any(direction):
-                raise bad("the direction must not be 0,0,0")
-            inner, outer = 0.0, 45.0
-            if len(fields) >= 5:
-                inner, outer = _numbers(fields[4], 2, "cone angles", "20,30 (inner, outer half-angles in degrees)")
-                if not 0.0 <= inner <= outer <= 90.0:
-                    raise bad(f"cone angles must satisfy 0 <= INNER <= OUTER <= 90 degrees, got {inner:g},{outer:g}")
-            colour = parse_colour(fields[5]) if len(fields) == 6 else (1.0, 1.0, 1.0)
-            return SpotLight(position=_numbers(fields[1], 3, "position", "0,5,0"), direction=direction,
-                             color=colour, intensity=intensity(fields[3], "candela"),
-                             inner_cone=math.radians(inner), outer_cone=math.radians(outer))
-        if kind == "sphere":
-            if len(fields) not in (4, 5):
-                raise bad("expected sphere:X,Y,Z:RADIUS:NITS[:R,G,B]")
-            colour = parse_colour(fields[4]) if len(fields) == 5 else (1.0, 1.0, 1.0)
-            return SphereLight(position=_numbers(fields[1], 3, "position", "0,3,0"),
-                               radius=_numbers(fields[2], 1, "radius", "0.25")[0], color=colour,
-                               intensity=intensity(fields[3], "nits"))
-        if kind == "rect":
-            if len(fields) not in (5, 6):
-                raise bad("expected rect:X,Y,Z:UX,UY,UZ:VX,VY,VZ:NITS[:R,G,B]")
-            colour = parse_colour(fields[5]) if len(fields) == 6 else (1.0, 1.0, 1.0)
-            return RectLight(position=_numbers(fields[1], 3, "position", "0,3,0"),
-                             edge_u=_numbers(fields[2], 3, "edge", "1,0,0"),
-                             edge_v=_numbers(fields[3], 3, "edge", "0,0,1"), color=colour,
-                             intensity=intensity(fields[4], "nits"))
-    except argparse.ArgumentTypeError as err:
-        message = str(err)
-        if message.startswith("invalid light"):
-            raise
-        raise bad(message.removeprefix("invalid ")) from None
-    except PbrwarpError as err:
-        raise bad(str(err)) from None
-    raise bad(f"unknown light type {kind!r}: expected point, dir, spot, sphere or rect")
-
 
 # ---------------------------------------------------------------------- argument parser
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog=PROG, description="Physically based rendering of triangle meshes on the CPU (NVIDIA Warp).",
+    parser = Parser(prog=PROG, description="Physically based rendering of triangle meshes on the CPU (NVIDIA Warp).",
                      formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXIT_STATUS_HELP)
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     parser.add_argument("-v", "--verbose", action="store_true", help=VERBOSE_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     def output_options(p, default_size, default_spp):
-        p.add_argument("-o", "--output", required=True, metavar="OUT",
-                       help="output image; the extension picks the format (.png, .jpg, ... tone mapped; "
-                            ".npy: linear float32 RGBA)")
-        p.add_argument("--size", type=parse_size, default=default_size, metavar="WxH",
-                       help=f"image size in pixels, each side 1 to {MAX_SIDE} "
-                            f"(default {default_size[0]}x{default_size[1]})")
-        p.add_argument("--spp", type=_positive_int("samples per pixel"), default=default_spp, metavar="N",
-                       help=f"samples per pixel (default {default_spp})")
-        p.add_argument("--tonemap", choices=("none", "reinhard", "aces"), default="aces",
-                       help="tone map for 8-bit output (default aces)")
-        p.add_argument("--exposure", type=_finite_float("exposure", -MAX_EXPOSURE, MAX_EXPOSURE), default=0.0,
-                       metavar="EV", help=f"exposure in stops from {-MAX_EXPOSURE:g} to {MAX_EXPOSURE:g}: "
-                                          "radiance is scaled by 2^EV (default 0)")
-        p.add_argument("--no-shadows", dest="shadows", action="store_const", const=False, default=True,
-                       help="render no shadows")
-        p.add_argument("--shadow-maps", dest="shadows", action="store_const", const="map",
-                       help="look shadows up in shadow maps instead of tracing shadow rays (faster, approximate)")
-        p.add_argument("--threads", type=_positive_int("thread count"), default=None, metavar="N",
-                       help=f"worker threads, at most {MAX_THREADS_PER_CORE} per core (default: one per core)")
-        p.add_argument("--background", type=parse_colour, default=None, metavar="R,G,B",
-                       help="linear radiance where no surface is hit (default: the --env environment, else 0,0,0)")
-        p.add_argument("--transparent", action="store_true",
-                       help="write coverage as alpha (PNG, WebP, TIFF) instead of the background")
-        p.add_argument("--quality", choices=("fast", "balanced", "accurate", "reference"), default=None,
-                       help="BRDF preset (default balanced; docs/accuracy.md gives each one's error and cost)")
-        p.add_argument("--visibility", choices=("auto", "raycast", "raster"), default="auto",
-                       help="primary visibility: ray cast, rasterized, or the cheaper by a cost model (default)")
-        p.add_argument("--texture-filter", choices=("trilinear", "bilinear"), default="trilinear",
-                       help="texture filtering: mip-mapped over each pixel's footprint (default), or the "
-                            "full-resolution image only (faster, aliases)")
-        p.add_argument("--integrator", choices=("direct", "path"), default="direct",
-                       help="light transport: direct lighting (default), or path tracing (light bouncing between "
-                            "surfaces, emissive materials as lights; the ground truth, slower)")
-        p.add_argument("--bounces", type=_whole_number("bounces", MAX_BOUNCES), default=None, metavar="N",
-                       help=f"with --integrator path: the most bounces, 0 to {MAX_BOUNCES} (default "
-                            f"{DEFAULT_MAX_BOUNCES}: paths of up to {DEFAULT_MAX_BOUNCES + 1} segments)")
-        p.add_argument("--time-budget", type=_positive_float("time budget"), default=None, metavar="SECONDS",
-                       help="with --integrator path: add passes of --spp samples while another fits in this "
-                            "many seconds")
-        p.add_argument("--target-error", type=_positive_float("target error"), default=None, metavar="E",
-                       help="with --integrator path: add passes of --spp samples until the mean relative "
-                            "standard error of the pixels is at most E (e.g. 0.02)")
-        p.add_argument("--env", metavar="HDR", default=None,
-                       help="light the scene with an equirectangular .hdr/.exr environment, also shown as the "
-                            "background unless --background is given (needs pip install 'pbrwarp[env]')")
-        p.add_argument("--env-intensity", type=_finite_float("environment intensity", 0.0), default=1.0, metavar="X",
-                       help="scale of the environment's radiance, >= 0 (default 1)")
-        p.add_argument("--explain", action="store_true",
-                       help="print which effects are simulated and why the others are not, then render")
+        add_output_options(p, default_size, default_spp)
         # also after the command; SUPPRESS keeps a --verbose given before it
         p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP)
 
     render = sub.add_parser("render", help="render a scene file (.glb .gltf .obj .ply .stl .off)",
                             formatter_class=argparse.RawDescriptionHelpFormatter, epilog=LIGHT_HELP + EXIT_STATUS_HELP)
-    render.add_argument("input", metavar="INPUT", help="scene file (.glb .gltf .obj .ply .stl .off)")
+    add_scene_options(render)
     output_options(render, (800, 600), 1)
-    render.add_argument("--camera", type=parse_camera, default=None, metavar="EX,EY,EZ,TX,TY,TZ",
-                        help="eye and target positions (default: the file's first camera, else one framing the scene)")
-    render.add_argument("--fov", type=parse_fov, default=None, metavar="DEG",
-                        help="vertical field of view in degrees (default: the file camera's, else 45)")
-    render.add_argument("--light", type=parse_light, action="append", default=[], metavar="SPEC",
-                        help="add a light (repeatable); see the light specs below")
+
+    def batch_options(p):
+        p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                       help="a Dask scheduler's address, e.g. tcp://10.0.0.5:8786 (default: a local cluster)")
+        p.add_argument("--workers", type=positive_int("worker count"), default=None, metavar="N",
+                       help="worker processes of the local cluster, sharing the cores (default 1)")
+        p.add_argument("--manifest", metavar="PATH", default=None,
+                       help="where each finished job's record is appended (default JOBS.manifest.jsonl)")
+        p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP)
+
+    batch = sub.add_parser("batch", help="render the jobs of a JSON-lines file on Dask (pip install 'pbrwarp[batch]')",
+                           formatter_class=argparse.RawDescriptionHelpFormatter, epilog=BATCH_HELP + EXIT_STATUS_HELP)
+    batch.add_argument("jobs", metavar="JOBS.jsonl", help="the jobs, one JSON object (one image) a line")
+    batch_options(batch)
+
+    def generator_options(p, what):
+        p.add_argument("-o", "--output", required=True, metavar="DIR",
+                       help=f"folder of the images and of the jobs file, {GENERATED_JOBS} (created if missing)")
+        p.add_argument("--views", type=positive_int("view count"), required=True, metavar="N",
+                       help=f"views of {what}, evenly spaced around it")
+        p.add_argument("--elevation", type=finite_float("elevation", -90.0, 90.0), default=20.0, metavar="DEG",
+                       help="height of the views above the horizon in degrees, -90 to 90 exclusive (default 20)")
+        p.add_argument("--format", choices=("png", "jpg", "webp", "tiff", "npy"), default="png",
+                       help="image format (default png; npy: linear float32 RGBA)")
+        p.add_argument("--light", type=light_spec, action="append", default=[], metavar="SPEC",
+                       help="add a light to every view (repeatable); see `pbrwarp render --help`")
+        p.add_argument("--plan", action="store_true", help="write the jobs file only, render nothing")
+        add_image_options(p, (512, 512), 1)
+        batch_options(p)
+        p.set_defaults(generator=p)  # for its options' defaults
+
+    turntable = sub.add_parser("batch turntable", help="render N views around a model (a turntable) on Dask",
+                               formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXIT_STATUS_HELP)
+    turntable.add_argument("model", metavar="MODEL", help="scene file (.glb .gltf .obj .ply .stl .off)")
+    generator_options(turntable, "the model, all at the distance at which its bounds fit the view")
+    turntable.add_argument("--fov", type=parse_fov, default=45.0, metavar="DEG",
+                           help="vertical field of view in degrees (default 45)")
+    folder = sub.add_parser("batch folder", help="render N views of every scene file under a folder on Dask",
+                            formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXIT_STATUS_HELP)
+    folder.add_argument("source", metavar="DIR", help="folder of scene files (sub-folders included)")
+    generator_options(folder, "each scene, each framing the scene")
 
     demo = sub.add_parser("demo", help="render the built-in demo scene (sphere grid and brick torus)",
                           formatter_class=argparse.RawDescriptionHelpFormatter, epilog=EXIT_STATUS_HELP)
@@ -359,101 +158,77 @@ def _version() -> str:
 
 
 # ---------------------------------------------------------------------- commands
-def _check_output(path: str, transparent: bool) -> None:
-    """Fail before rendering, not after, for outputs that cannot be written."""
-    ext = os.path.splitext(path)[1].lower()
-    directory = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(directory):
-        raise InputError(f"cannot save {path}: folder {directory} does not exist")
-    if os.path.isdir(path):
-        raise InputError(f"cannot save {path}: it is a folder")
-    if ext == ".npy":
-        return
-    from PIL import Image
-
-    fmt = Image.registered_extensions().get(ext)
-    if fmt is None or fmt not in Image.SAVE:
-        raise InputError(f"cannot save {path}: unknown image extension {ext!r} (try .png or .npy)")
-    if transparent and fmt not in ("PNG", "WEBP", "TIFF"):
-        raise InputError(f"{fmt} cannot store transparency; save as .png")
-
 
 def _note(message: str) -> None:
     print(f"{PROG}: {message}", file=sys.stderr)
 
 
-def _look_at(eye, target, fov):
-    forward = np.subtract(target, eye)
-    # looking (almost) straight up or down: world +Y cannot be the up vector
-    up = (0.0, 1.0, 0.0)
-    if np.linalg.norm(np.cross(forward / np.linalg.norm(forward), up)) < 1e-3:
-        up = (0.0, 0.0, -1.0 if forward[1] < 0 else 1.0)
-    return Camera.look_at(eye, target, up=up, fov_y=fov)
-
-
-def _choose_camera(scene, args) -> Camera:
-    fov = args.fov
-    if args.camera is not None:
-        return _look_at(*args.camera, 45.0 if fov is None else fov)
-    if scene.cameras:
-        cam = scene.cameras[0]
-        return cam if fov is None else Camera(cam.eye, cam.forward, cam.up, fov_y=fov)
-    width, height = args.size
-    return Camera.frame(scene, fov_y=45.0 if fov is None else fov, aspect=width / height)
-
-
-def _shoulder_light(camera: Camera) -> DirectionalLight:
-    """A key light from above and to the right, behind the camera."""
-    forward, up, right = (np.asarray(v) for v in (camera.forward, camera.up, camera.right))
-    return DirectionalLight(direction=tuple(forward - 0.7 * up - 0.4 * right), intensity=DEFAULT_KEY_LUX)
-
-
-def _load_environment(scene, args) -> None:
-    if args.env is not None:
-        from .environment import Environment
-
-        scene.environment = Environment.load(args.env, intensity=args.env_intensity)
-
-
-def _render_and_save(scene, camera, args, background) -> None:
-    from .render import explain, render
-
-    width, height = args.size
-    options = dict(width=width, height=height, spp=args.spp, shadows=args.shadows, quality=args.quality,
-                   visibility=args.visibility, background=background, texture_filter=args.texture_filter,
-                   integrator=args.integrator, max_bounces=args.bounces, time_budget=args.time_budget,
-                   target_error=args.target_error)
-    if args.explain:
-        print(explain(scene, **options))
-    frame = render(scene, camera, threads=args.threads, **options)
-    frame.save(args.output, exposure=args.exposure, tonemap=args.tonemap, transparent=args.transparent)
-
 
 def cmd_render(args) -> int:
     from .scene import Scene
 
-    _check_output(args.output, args.transparent)
+    check_output(args.output, args.transparent)
     scene = Scene.load(args.input)
-    camera = _choose_camera(scene, args)
-    for light in args.light:
-        scene.add_light(light)
-    _load_environment(scene, args)
-    lit_by_emitters = args.integrator == "path" and emissive_materials(scene) > 0
-    if not scene.lights and scene.environment is None and not lit_by_emitters:
-        scene.add_light(_shoulder_light(camera))
-        _note(f"note: the scene has no lights; added a {DEFAULT_KEY_LUX:g} lux directional light "
-              "from over the camera's shoulder (use --light to choose your own)")
-    _render_and_save(scene, camera, args, args.background)
+    camera = choose_camera(scene, args)
+    note = light_scene(scene, camera, args, load_environment(args))
+    if note is not None:
+        _note(note)
+    render_and_save(scene, camera, args, args.background)
     return 0
 
 
 def cmd_demo(args) -> int:
     from pbrwarp.meshes import DEMO_BACKGROUND, demo_scene
 
-    _check_output(args.output, args.transparent)
+    check_output(args.output, args.transparent)
     scene, camera = demo_scene()
-    _load_environment(scene, args)
-    _render_and_save(scene, camera, args, args.background or (None if scene.environment else DEMO_BACKGROUND))
+    if args.env is not None:
+        scene.environment = load_environment(args)
+    render_and_save(scene, camera, args, args.background or (None if scene.environment else DEMO_BACKGROUND))
+    return 0
+
+
+def light_spec(text: str) -> str:
+    """A --light spec as given, once parse_light accepts it (a job holds the spec)."""
+    parse_light(text)
+    return text
+
+
+def cmd_batch(args) -> int:
+    return _run_batch(args.jobs, args)
+
+
+def cmd_generate(args) -> int:
+    from . import batch
+
+    os.makedirs(args.output, exist_ok=True)
+    options = batch.job_options(args, args.generator, args.output)
+    ext = "." + args.format
+    if args.command == "batch turntable":
+        jobs = batch.turntable_jobs(args.model, args.views, args.output, args.elevation, args.fov, ext, options)
+    else:
+        jobs = batch.folder_jobs(args.source, args.views, args.output, args.elevation, ext, options)
+    path = os.path.join(args.output, GENERATED_JOBS)
+    batch.write_jobs(path, jobs)
+    _note(f"wrote {len(jobs)} jobs to {path}")
+    return 0 if args.plan else _run_batch(path, args)
+
+
+def _run_batch(jobs, args) -> int:
+    from .batch import default_manifest, render_batch
+
+    if args.scheduler is not None and args.workers is not None:
+        raise UsageError("--workers sets the size of the local cluster; with --scheduler the cluster has its own")
+    manifest = args.manifest or default_manifest(jobs)
+    records = render_batch(jobs, client=args.scheduler, manifest=manifest, workers=args.workers)
+    counts = {status: sum(r["status"] == status for r in records) for status in ("ok", "skipped", "error")}
+    _note(f"{counts['ok']} rendered, {counts['skipped']} skipped (already done), {counts['error']} failed; "
+          f"manifest: {manifest}")
+    failed = [r for r in records if r["status"] == "error"]
+    if failed:
+        _note(f"error: job {failed[0]['id']}: {failed[0]['error']}"
+              + (f" (and {len(failed) - 1} more failed jobs: see the manifest)" if len(failed) > 1 else ""))
+        return EXIT_USAGE
     return 0
 
 
@@ -505,9 +280,18 @@ def _glue_negative_values(argv: list[str]) -> list[str]:
     return out
 
 
+def _join_generator_commands(argv: list[str]) -> list[str]:
+    """"batch turntable ..." as the command "batch turntable" (likewise folder): `batch` alone
+    takes a jobs file in the same place."""
+    first = next((i for i, token in enumerate(argv) if not token.startswith("-")), len(argv))
+    if first + 1 < len(argv) and argv[first] == "batch" and argv[first + 1] in GENERATORS:
+        return argv[:first] + [f"batch {argv[first + 1]}"] + argv[first + 2:]
+    return argv
+
+
 def _main(argv) -> int:
     parser = build_parser()
-    argv = _glue_negative_values(list(sys.argv[1:] if argv is None else argv))
+    argv = _join_generator_commands(_glue_negative_values(list(sys.argv[1:] if argv is None else argv)))
     verbose = startup.verbose_from_environment()
     try:
         try:
@@ -516,10 +300,11 @@ def _main(argv) -> int:
             return exit_.code if isinstance(exit_.code, int) else 0
         verbose = verbose or args.verbose
         with _warp_messages(verbose):
-            command = {"render": cmd_render, "demo": cmd_demo}[args.command]
+            command = {"render": cmd_render, "demo": cmd_demo, "batch": cmd_batch, "batch turntable": cmd_generate,
+                       "batch folder": cmd_generate}[args.command]
             return command(args)
     except (UsageError, PbrwarpError, OSError, ImportError) as err:
-        return _fail(EXIT_USAGE, f"error: {_one_line(err)}", verbose)
+        return _fail(EXIT_USAGE, f"error: {one_line(err)}", verbose)
     except MemoryError as err:
         return _fail(EXIT_USAGE, _out_of_memory(err), verbose)
     except KeyboardInterrupt:
@@ -529,7 +314,7 @@ def _main(argv) -> int:
     except Exception as err:
         if isinstance(err, RuntimeError) and str(err).startswith("Failed to allocate"):  # Warp's wording
             return _fail(EXIT_USAGE, _out_of_memory(err), verbose)
-        return _fail(EXIT_INTERNAL_ERROR, f"internal error: {type(err).__name__}: {_one_line(err)} "
+        return _fail(EXIT_INTERNAL_ERROR, f"internal error: {type(err).__name__}: {one_line(err)} "
                                           "(this is a bug in pbrwarp: run again with --verbose to see where, "
                                           "and please report it)", verbose)
 
@@ -548,12 +333,9 @@ def _warp_messages(verbose: bool):
         wp.config.log_level = level
 
 
-def _one_line(err: BaseException) -> str:
-    return " ".join(str(err).split()) or type(err).__name__
-
 
 def _out_of_memory(err: BaseException) -> str:
-    return (f"error: not enough memory ({_one_line(err)}): try a smaller --size or --spp, "
+    return (f"error: not enough memory ({one_line(err)}): try a smaller --size or --spp, "
             "or a scene with fewer triangles and smaller textures")
 
 
