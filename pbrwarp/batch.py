@@ -47,7 +47,7 @@ import numpy as np
 from . import render_options, validate
 from .camera import Camera, field_of_view
 from .errors import InputError, PbrwarpError
-from .parallel import cores
+from .parallel import cores, progress_bar
 from .render import render
 from .scene_cache import Cache
 
@@ -413,7 +413,8 @@ def render_batch(jobs, client=None, manifest=None, *, workers: int | None = None
         else:
             todo.append(index)
     out = open(manifest, "a", encoding="utf-8") if manifest is not None else None
-    bar = _progress_bar(len(parsed), progress)
+    bar = progress_bar(progress, total=len(parsed), unit="image", desc="batch", file=sys.stderr,
+                       dynamic_ncols=True)
     try:
         for record in records:
             if record is not None:
@@ -485,16 +486,6 @@ class _client:
     def __exit__(self, *exc):
         for opened in reversed(self._opened):
             opened.close()
-
-
-def _progress_bar(total: int, enabled):
-    if enabled is False:
-        return None
-    try:
-        from tqdm import tqdm
-    except ImportError:
-        return None
-    return tqdm(total=total, unit="image", desc="batch", file=sys.stderr, dynamic_ncols=True)
 
 
 # ---------------------------------------------------------------------- generators

@@ -299,3 +299,15 @@ def _after_fork_in_child():
 
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+def progress_bar(enabled, **options):
+    """A tqdm progress bar made with ``options``, or None where ``enabled`` is False or tqdm (an
+    optional dependency) is not installed."""
+    if enabled is False:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return None
+    return tqdm(**options)

@@ -19,6 +19,7 @@ import numpy as np
 from . import validate
 from .errors import InputError, InputTypeError
 from .frame import Frame
+from .parallel import progress_bar
 
 # The most samples per pixel one call adds when no time budget bounds it (target_error alone).
 MAX_SAMPLES_PER_CALL = validate.MAX_SPP
@@ -140,7 +141,8 @@ class Accumulation:
                 n = validate.render_size(*self._size, spp, rasterized=False)[2]
             start = time.perf_counter()
             added = 0
-            bar = _progress_bar(self._progress if budget or target else False)
+            bar = progress_bar(self._progress if budget or target else False, unit="spp", desc="render", delay=1.0,
+                               leave=False)
             try:
                 while True:
                     if self._next_sample + n > MAX_SAMPLE_INDEX:
@@ -173,13 +175,3 @@ class Accumulation:
                 if bar is not None:
                     bar.close()
             return self._frame
-
-
-def _progress_bar(enabled):
-    if enabled is False:
-        return None
-    try:
-        from tqdm import tqdm
-    except ImportError:
-        return None
-    return tqdm(unit="spp", desc="render", delay=1.0, leave=False)

@@ -24,7 +24,7 @@ from .frame import Frame
 from .gpu_scene import back_face_culling, upload
 from .ibl import IBL, ibl_for_quality
 from .lights import AreaLighting, area_lighting_for_quality
-from .parallel import run_all, thread_count
+from .parallel import progress_bar, run_all, thread_count
 from .progressive import Accumulation, checked_positive
 from .raster import reused_buffer, visibility_buffer
 from .light_buffers import build as build_light_buffers, no_light_buffers
@@ -84,17 +84,6 @@ def _camera_data(camera: Camera, width: int, height: int) -> CameraData:
     return data
 
 
-def _progress_bar(total: int, enabled):
-    if enabled is False:
-        return None
-    try:
-        from tqdm import tqdm
-    except ImportError:
-        return None
-    # delay: the bar appears only for renders that take more than about a second
-    return tqdm(total=total, unit="row", desc="render", delay=1.0, leave=False)
-
-
 def _run_with_progress(launch, workers: int, rows_taken: wp.array, height: int, progress):
     """launch(k) for k in range(workers) on as many threads, a progress bar (if enabled and tqdm
     is installed) following the rows taken from ``rows_taken`` meanwhile; an interrupt (or
@@ -104,7 +93,8 @@ def _run_with_progress(launch, workers: int, rows_taken: wp.array, height: int, 
     def stop():
         counters[int(STOP)] = 1
 
-    bar = _progress_bar(height, progress)
+    # delay: the bar appears only for renders that take more than about a second
+    bar = progress_bar(progress, total=height, unit="row", desc="render", delay=1.0, leave=False)
     if bar is None:
         run_all(launch, range(workers), workers, cancel=stop)
         return

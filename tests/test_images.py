@@ -254,7 +254,7 @@ def test_progress_bar_follows_every_row(threads, monkeypatch):
             self.closed = True
 
     render_module = sys.modules["pbrwarp.render"]
-    monkeypatch.setattr(render_module, "_progress_bar", lambda total, enabled: Bar(total))
+    monkeypatch.setattr(render_module, "progress_bar", lambda enabled, total, **options: Bar(total))
     monkeypatch.setattr(render_module, "PROGRESS_INTERVAL", 0.001)
     scene = pw.Scene()
     scene.add_mesh(trimesh.creation.icosphere(subdivisions=3), pw.Material())
