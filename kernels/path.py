@@ -90,7 +90,10 @@ def path_kernel(features):
     # the environment is a light where it lights the scene (not where it is only the background)
     environment_lights = bool(f.environment)
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
-    scattering = f.diffuse or f.specular
+    # transmissive surfaces that bend light (volumes, rough thin walls) scatter paths through them
+    # (kernels/path_transmission.py), lit or not; without them, smooth thin walls are passed straight only
+    lobes = f.transmission and (f.volume or bool(f.rough_transmission))
+    scattering = f.diffuse or f.specular or lobes
     hit_uv, alpha_at, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion,
                                                               f.second_uv_set)
     # textures are filtered over one pixel's footprint where the camera ray meets its first
@@ -101,9 +104,6 @@ def path_kernel(features):
     base_color_at, surface_inputs, emission_at = inputs.base_color_at, inputs.surface_inputs, inputs.emission_at
     anisotropy_at, thin_film_at, shading_normal = inputs.anisotropy_at, inputs.thin_film_at, inputs.shading_normal
     transmission_at = inputs.transmission_at
-    # transmissive surfaces that bend light (volumes, rough thin walls) scatter paths through them
-    # (kernels/path_transmission.py); without them, smooth thin walls are passed straight only
-    lobes = f.transmission and (f.volume or bool(f.rough_transmission))
     if lobes:
         scatters, scatter = transmission_lobes(f.volume, bool(f.rough_transmission))
 
@@ -381,8 +381,10 @@ def path_kernel(features):
                 # directly has full weight) and the vertex it left
                 previous_pdf = float(0.0)
                 previous_p = cam.eye
-                # the attenuation coefficient of the volume the path travels in (0: none)
+                # the attenuation coefficient of the volume the path travels in (0: none), and
+                # whether the path has only been scattered through transmissive surfaces since the eye
                 sigma = wp.vec3(0.0)
+                seen_through = bool(True)
                 for bounce in range(max_bounces + 1):
                     found, h, passed, met = find_surface(scene, origin, d, bounce == 0, key, bounce)
                     if wp.static(area):
@@ -409,6 +411,10 @@ def path_kernel(features):
                                 if met:  # the background seen through them
                                     radiance = radiance + wp.cw_mul(throughput, background)
                         else:
+                            if wp.static(lobes and not f.environment_background):
+                                if seen_through:  # the background seen through them, as through thin walls
+                                    radiance = radiance + wp.cw_mul(throughput, background)
+                                    break
                             if wp.static(environment_lights):
                                 # weighted against next-event estimation's choice of the environment
                                 weight = power_heuristic(previous_pdf,
@@ -465,6 +471,8 @@ def path_kernel(features):
                                 if scattered:
                                     pdf = NOT_LIGHT_SAMPLED
                                     sigma = medium_after(sigma, mat, h.back_face, h.ng, l)
+                            if not scattered:
+                                seen_through = False
                         # the diffuse lobe keeps what transmission leaves (KHR_materials_transmission)
                         base = base * (1.0 - t)
                     aniso_t = wp.vec3(0.0)
