@@ -18,7 +18,8 @@ adds the environment's, each weighted by the power heuristic against light sampl
 rays do not see area lights, as in the direct kernel, and see the environment at full weight).
 Smooth thin transmissive walls are passed as null events,
 with the probability of the share they transmit (find_surface), and shadow rays pass them tinted
-by that share (transmittance). After three bounces, Russian roulette continues a path with
+by that share (transmittance); volumes and rough thin walls scatter paths through them, and stop
+shadow rays (kernels/path_transmission.py). After three bounces, Russian roulette continues a path with
 probability q = min(max throughput channel, 0.95), dividing its throughput by q. Every random
 number is a hash of (seed, pixel, sample, dimension) (kernels/random.py).
 
@@ -43,7 +44,8 @@ from .ibl import EnvironmentData, environment_radiance
 from .lights import light_sampler
 from .material_inputs import material_lookups
 from .microfacet import alpha_from_roughness
-from .path_transmission import MAX_PASSED, NOT_LIGHT_SAMPLED, medium_after, transmission_lobes
+from .path_transmission import (MAX_PASSED, MIRRORED, NOT_LIGHT_SAMPLED, SCATTERED, medium_after, thin_lobe_frame,
+                                transmission_lobes)
 from .random import sample_key, uniform, uniform2
 from .render import ROWS_TAKEN, STOP
 from .robust import FLOAT32_MAX, RAY_FAR, clamp_to_float32_max, offset_ray_origin, safe_normalize
@@ -454,7 +456,8 @@ def path_kernel(features):
                     base = base_color_at(scene, h, mat, uv)
                     metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
                     dim = FIRST_BOUNCE_DIMENSION + bounce * DIMENSIONS_PER_BOUNCE
-                    scattered = False
+                    scattered = bool(False)  # along a direction drawn by scatter
+                    through = bool(False)  # through a transmissive surface
                     l = wp.vec3(0.0)
                     pdf = float(0.0)
                     if wp.static(f.transmission):
@@ -463,15 +466,26 @@ def path_kernel(features):
                             if t > 0.0 and scatters(mat):
                                 share = transmitted_share(base, metallic, t, specular, f0_dielectric,
                                                           wp.abs(wp.dot(n, v)))
-                                scattered, l, event_weight = scatter(d, n, h.ng, h.back_face, mat, roughness, share,
-                                                                     uniform(key, dim + TRANSMISSION_CHOICE),
-                                                                     uniform(key, dim + LOBE_CHOICE),
-                                                                     uniform2(key, dim + DIRECTION))
+                                event, l, event_weight = scatter(d, n, h.ng, h.back_face, mat, roughness, share,
+                                                                 uniform(key, dim + TRANSMISSION_CHOICE),
+                                                                 uniform(key, dim + LOBE_CHOICE),
+                                                                 uniform2(key, dim + DIRECTION))
                                 throughput = wp.cw_mul(throughput, event_weight)
-                                if scattered:
+                                if event == SCATTERED:
+                                    scattered = True
+                                    through = True
                                     pdf = NOT_LIGHT_SAMPLED
                                     sigma = medium_after(sigma, mat, h.back_face, h.ng, l)
-                            if not scattered:
+                                if event == MIRRORED:
+                                    # a rough thin wall's lobe: the reflection of a white metal off
+                                    # the frame mirrored through the wall, sampled and lit below
+                                    n, v, mirrored_ng, roughness = thin_lobe_frame(n, v, h.ng, roughness, mat.ior)
+                                    h.ng = mirrored_ng
+                                    base = wp.vec3(1.0)
+                                    metallic = 1.0
+                                    t = 0.0
+                                    through = True
+                            if not through:
                                 seen_through = False
                         # the diffuse lobe keeps what transmission leaves (KHR_materials_transmission)
                         base = base * (1.0 - t)

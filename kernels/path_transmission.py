@@ -12,17 +12,21 @@ between the BSDF's parts, Veach 1997, section 9.2.4): the transmission lobe then
 - enters a volume by Snell's law (refract_through; roughness 0, a delta event) or through a GGX
   normal visible from the viewer (sample_rough_interface, Walter et al. 2007 with Heitz 2018's
   visible normals), its weight G1 of the new direction;
-- or passes a rough thin wall along the mirrored reflection lobe the extension defines
-  (sample_thin_lobe).
+- or passes a rough thin wall along the lobe the extension defines, the specular lobe "sampled
+  along the line of sight through the surface" (sample_thin_lobe's): the path tracer mirrors the
+  shading frame through the wall (thin_lobe_frame) and samples, evaluates and lights that lobe
+  with its BRDF code, as the reflection of a white metal (F = 1) at the lobe's roughness, so that
+  next-event estimation reaches lights behind the wall, MIS-weighted with the lobe's own pdf.
 A volume's surface hit from inside is a bare dielectric interface (relative IOR 1 / ior, no base
 colour, no diffuse part, as in the direct kernel): sample_dielectric_interface reflects off it
 with the exact Fresnel reflectance of the (micro)facet, total internal reflection included, and
 refracts out otherwise. Inside a volume, throughput falls by Beer-Lambert over the distance
 travelled (kernels/transmission.py beer_lambert).
 
-Next-event estimation does not sample the directions of these lobes: shadow rays stop at
-scattering surfaces, so a direction drawn from a transmission lobe records NOT_LIGHT_SAMPLED as
-its pdf, which gives the emission it finds full MIS weight.
+Shadow rays stop at scattering surfaces. Next-event estimation does not sample the directions
+of a volume's lobes (a straight shadow ray through a refracting surface is no path): a direction
+drawn from them records NOT_LIGHT_SAMPLED as its pdf, which gives the emission it finds full MIS
+weight.
 """
 
 import functools
@@ -34,8 +38,7 @@ from .direction_sampling import G1_SmithGGX, orthonormal_basis, sample_ggx_vndf
 from .microfacet import alpha_from_roughness
 from .robust import FLOAT32_MAX
 from .scene_data import MaterialData
-from .transmission import (reflect, refract, refract_through, sample_rough_interface, sample_thin_lobe,
-                           transmission_roughness)
+from .transmission import reflect, refract, refract_through, sample_rough_interface, transmission_roughness
 
 wp.set_module_options({"enable_backward": False})
 
@@ -45,6 +48,11 @@ MAX_PASSED = wp.constant(0.95)
 # The pdf recorded for a direction next-event estimation cannot sample: the power heuristic
 # (kernels/bsdf_sampling.py) gives what the path finds along it weight 1 to float32 precision.
 NOT_LIGHT_SAMPLED = wp.constant(FLOAT32_MAX)
+# What scatter decides: the surface's reflecting BRDF goes on as at any surface; the path was
+# scattered along a direction drawn; or it passes a rough thin wall along its mirrored lobe.
+REFLECTED = wp.constant(0)
+SCATTERED = wp.constant(1)
+MIRRORED = wp.constant(2)
 
 
 @wp.func
@@ -94,6 +102,16 @@ def medium_after(sigma: wp.vec3, mat: MaterialData, back_face: int, ng: wp.vec3,
     return sigma
 
 
+@wp.func
+def thin_lobe_frame(n: wp.vec3, v: wp.vec3, ng: wp.vec3, roughness: float, ior: float):
+    """(n, v, ng, roughness) of a rough thin wall's transmission lobe seen as a reflection: the
+    shading normal ``n``, the view ``v`` and the geometric normal ``ng`` mirrored through the
+    wall's plane (n reversed, v reflected by the plane of n), and the lobe's roughness
+    (transmission_roughness). Reflection off that frame is sample_thin_lobe's direction:
+    mirroring keeps the angles, so D, G and the visible-normal pdf are the reflection's."""
+    return -n, v - 2.0 * wp.dot(v, n) * n, -ng, transmission_roughness(roughness, ior)
+
+
 @functools.cache
 def transmission_lobes(volume: bool, rough: bool):
     """(scatters, scatter) compiled for a scene's transmissive materials: ``volume`` where some
@@ -114,37 +132,36 @@ def transmission_lobes(volume: bool, rough: bool):
     @wp.func
     def scatter(d: wp.vec3, n: wp.vec3, ng: wp.vec3, back_face: int, mat: MaterialData, roughness: float,
                 share: wp.vec3, u_choice: float, u_fresnel: float, u: wp.vec2):
-        """(whether the path is scattered through the surface, its new direction, the weight of
-        the event) where a path along ``d`` meets a scattering surface (``scatters``), normals
-        ``n`` and ``ng`` turned towards it, ``roughness`` the material's there, ``share`` the
-        share of light it transmits (transmitted_share). From inside a volume: a bare interface,
-        always scattered (reflected or refracted). From outside: the transmission lobe with
-        probability p (weight share / p, the direction from the lobe), else (False, d,
-        1 / (1 - p)): the caller goes on with the reflecting BRDF."""
+        """(event, new direction, weight of the event) where a path along ``d`` meets a
+        scattering surface (``scatters``), normals ``n`` and ``ng`` turned towards it,
+        ``roughness`` the material's there, ``share`` the share of light it transmits
+        (transmitted_share). From inside a volume: a bare interface, SCATTERED (reflected or
+        refracted). From outside: the transmission lobe with probability p, else (REFLECTED, d,
+        1 / (1 - p)): the caller goes on with the reflecting BRDF. The lobe of a volume:
+        SCATTERED into it, weight share / p times the lobe's; of a rough thin wall: (MIRRORED,
+        d, share / p), the caller goes on with the lobe's mirrored frame (thin_lobe_frame)."""
         thick = False
         if wp.static(volume):
             thick = mat.thickness > 0.0
             if thick and back_face == 1:
                 direction, w = sample_dielectric_interface(d, n, ng, 1.0 / mat.ior, roughness, u_fresnel, u)
-                return True, direction, wp.vec3(w)
+                return SCATTERED, direction, wp.vec3(w)
         p = wp.min(wp.max(wp.max(share[0], share[1]), share[2]), MAX_PASSED)
         if p <= 0.0:
-            return False, d, wp.vec3(1.0)
+            return REFLECTED, d, wp.vec3(1.0)
         if u_choice >= p:
-            return False, d, wp.vec3(1.0 / (1.0 - p))
+            return REFLECTED, d, wp.vec3(1.0 / (1.0 - p))
+        if not thick:
+            return MIRRORED, d, share / p
         direction = d
         w = float(1.0)
-        if thick:
-            refracts = bool(False)
-            if roughness > 0.0:
-                refracts, direction, w = sample_rough_interface(d, n, ng, mat.ior, roughness, u)
-            else:
-                refracts, direction, bent_by = refract_through(d, n, ng, mat.ior)
-            if not refracts:  # reflected: the BRDF's part, not this lobe's
-                w = 0.0
+        refracts = bool(False)
+        if roughness > 0.0:
+            refracts, direction, w = sample_rough_interface(d, n, ng, mat.ior, roughness, u)
         else:
-            if wp.static(rough):
-                direction, w = sample_thin_lobe(d, n, ng, transmission_roughness(roughness, mat.ior), u)
-        return True, direction, share * (w / p)
+            refracts, direction, bent_by = refract_through(d, n, ng, mat.ior)
+        if not refracts:  # reflected: the BRDF's part, not this lobe's
+            w = 0.0
+        return SCATTERED, direction, share * (w / p)
 
     return scatters, scatter

@@ -499,8 +499,11 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
                                    f"inside by Beer-Lambert (KHR_materials_volume: {_count(volumes, 'material')}; "
                                    "one volume at a time, not nested)")
     rough = sum(1 for m in transmissive if m.thickness <= 0.0 and m.roughness > 0.0 and m.ior != 1.0)
+    if rough and not next(d.present for d in decisions if d.name == "specular"):
+        changed["specular"] = (True, "specular lobe: rough thin walls transmit along its mirror image")
     changed["rough_transmission"] = (
-        ("sampled", "paths pass rough thin walls along the GGX transmission lobe, sampled "
+        ("sampled", "paths pass rough thin walls along the GGX transmission lobe (the specular lobe mirrored "
+                    "through the wall), sampled, and next-event estimation lights it from behind them "
                     f"({_count(rough, 'material')})") if rough else
         (False, "no rough transmission lobe: " + ("no rough thin-walled transmissive material" if transmissive
                                                   else "no transmissive material")))
