@@ -11,12 +11,14 @@ import trimesh
 import warp as wp
 
 import pbrwarp as pw
+from pbrwarp.features import path_features, scene_features
+from pbrwarp.gpu_scene import upload
 from pbrwarp.kernels.path_transmission import sample_dielectric_interface
 
 import reference as ref
 from goodness_of_fit import chi_square_ok
 from scenes import head_on_camera, quad
-from test_transmission import (binned, g1_ggx, histogram, rough_interface_pdfs, slab, sphere_grid,
+from test_transmission import (binned, g1_ggx, glowing, histogram, rough_interface_pdfs, slab, sphere_grid,
                                visible_normals_pdf)
 
 # Smith's separable masking-shadowing: its GGX reflection lobe at roughness 0 reflects F, as the
@@ -112,6 +114,25 @@ def test_a_volume_absorbs_by_beer_lambert_what_is_seen_through_it(ior):
     error = values.std(0, ddof=1) / math.sqrt(len(values))
     assert np.all(np.abs(values.mean(0) - expected) < 4 * error + 1e-3 * expected), (values.mean(0), expected, error)
     np.testing.assert_array_equal(frame.alpha, 1.0)
+
+
+# ---------------------------------------------------------------------------- (e) against the direct integrator
+def test_two_bounces_through_a_volume_equal_the_direct_integrator():
+    """A smooth absorbing box before an emitter, seen head-on: with two bounces (into the box, out
+    of it, then the emitter) the path tracer follows what the direct integrator does, entering
+    (1 - F), absorbed exp(-sigma d), leaving (1 - F), and drops what reflects inside (which needs
+    more bounces), so the two agree: the path tracer's mean within 4 standard errors of the
+    direct integrator's image (itself exact but for float32)."""
+    colour, distance, depth, le = np.array([0.5, 0.8, 0.95]), 1.0, 0.6, np.array([0.2, 0.5, 0.9])
+    scene = pw.Scene()
+    scene.add_mesh(slab(depth, glass(attenuation_color=tuple(colour), attenuation_distance=distance)))
+    scene.add_mesh(quad(size=4.0, z=-0.5, material=glowing(le)))
+    direct = pw.render(scene, NARROW, width=12, height=12, progress=False).rgb.reshape(-1, 3).astype(np.float64)
+    path = render(scene, NARROW, 12, spp=32, max_bounces=2, seed=9).rgb.reshape(-1, 3).astype(np.float64)
+    error = path.std(0, ddof=1) / math.sqrt(len(path))
+    expected = direct.mean(0)
+    np.testing.assert_allclose(expected, 0.96**2 * np.exp(np.log(colour) / distance * depth) * le, rtol=2e-3)
+    assert np.all(np.abs(path.mean(0) - expected) < 4 * error + 1e-3 * expected), (path.mean(0), expected, error)
 
 
 # ---------------------------------------------------------------------------- (e) a rough thin wall
@@ -304,6 +325,26 @@ def test_total_internal_reflection_sends_the_ray_back_out_of_a_prism():
     expected = 0.96**2 / (1 - 0.04) * BACKGROUND
     error = values.std(0, ddof=1) / math.sqrt(len(values))
     assert np.all(np.abs(values.mean(0) - expected) < 4 * error + 1e-3 * expected), (values.mean(0), expected, error)
+
+
+# ---------------------------------------------------------------------------- what is compiled, what explain says
+def test_transmission_lobes_are_compiled_in_only_where_a_scene_has_volumes_or_rough_walls():
+    """A smooth thin wall keeps the path kernel's null events alone (no volume, no rough
+    transmission flags: none of kernels/path_transmission.py's lobes compiled in); a volume sets
+    ``volume``, a rough thin wall ``rough_transmission``; an opaque scene neither."""
+    def flags(material):
+        scene = pw.Scene()
+        scene.add_mesh(quad(size=4.0, material=material))
+        scene.add_light(pw.PointLight(position=(0.0, 0.0, 2.0)))
+        f = path_features(scene_features(scene, upload(scene), shadows="rays", spp=1, integrator="path",
+                                         max_bounces=4))
+        return f.transmission, f.volume, f.rough_transmission
+
+    assert flags(pw.Material()) == (False, False, False)
+    assert flags(glass(thickness=0.0)) == (True, False, False)
+    assert flags(glass(thickness=0.0, roughness=0.4, ior=1.0)) == (True, False, False)  # ior 1 bends nothing
+    assert flags(glass(thickness=0.5)) == (True, True, False)
+    assert flags(glass(thickness=0.0, roughness=0.4)) == (True, False, "sampled")
 
 
 # ---------------------------------------------------------------------------- what explain says
