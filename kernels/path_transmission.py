@@ -2,8 +2,8 @@
 what a path does at a transmissive surface that bends light, with the dielectric interfaces of
 kernels/transmission.py.
 
-A surface *scatters* light through it where it is the boundary of a volume (thickness > 0) or a
-rough thin wall (its transmission roughness, transmission_roughness of the material's roughness
+A surface *scatters* light through it where it is the boundary of a volume (thickness > 0, not
+alpha-blended: a blended surface is a thin wall, as in the direct kernel) or a rough thin wall (its transmission roughness, transmission_roughness of the material's roughness
 factor, > 0); smooth thin walls pass light straight, as null events (kernels/path.py
 find_surface). At a scattering surface hit from outside, the path picks the transmission lobe with
 probability p = min(max channel of the transmitted share, MAX_PASSED) and is weighted by
@@ -89,13 +89,21 @@ def sample_dielectric_interface(d: wp.vec3, n: wp.vec3, ng: wp.vec3, eta: float,
 
 
 @wp.func
+def is_volume(mat: MaterialData) -> bool:
+    """Whether a transmissive material bounds a volume: thickness > 0 (KHR_materials_volume) and
+    not alpha-blended (paths pass blended surfaces by their coverage, which would lose track of
+    which side they are on)."""
+    return mat.thickness > 0.0 and mat.alpha_blend == 0
+
+
+@wp.func
 def medium_after(sigma: wp.vec3, mat: MaterialData, back_face: int, ng: wp.vec3, direction: wp.vec3) -> wp.vec3:
     """The attenuation coefficient of the medium a path is in after leaving a surface along
     ``direction`` (``ng`` turned towards where it came from): a volume's once it crosses the
     volume's surface from outside, none once it crosses it from inside, ``sigma`` otherwise
     (reflected, or a thin wall). One volume at a time: volumes nested in others are not
     tracked."""
-    if mat.thickness > 0.0 and wp.dot(direction, ng) < 0.0:
+    if is_volume(mat) and wp.dot(direction, ng) < 0.0:
         if back_face == 0:
             return mat.attenuation
         return wp.vec3(0.0)
@@ -123,7 +131,7 @@ def transmission_lobes(volume: bool, rough: bool):
     @wp.func
     def scatters(mat: MaterialData) -> bool:
         if wp.static(volume):
-            if mat.thickness > 0.0:
+            if is_volume(mat):
                 return True
         if wp.static(rough):
             return transmission_roughness(mat.roughness, mat.ior) > 0.0
@@ -142,7 +150,7 @@ def transmission_lobes(volume: bool, rough: bool):
         d, share / p), the caller goes on with the lobe's mirrored frame (thin_lobe_frame)."""
         thick = False
         if wp.static(volume):
-            thick = mat.thickness > 0.0
+            thick = is_volume(mat)
             if thick and back_face == 1:
                 direction, w = sample_dielectric_interface(d, n, ng, 1.0 / mat.ior, roughness, u_fresnel, u)
                 return SCATTERED, direction, wp.vec3(w)
