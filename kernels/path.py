@@ -413,10 +413,11 @@ def path_kernel(features):
                                 if met:  # the background seen through them
                                     radiance = radiance + wp.cw_mul(throughput, background)
                         else:
-                            if wp.static(lobes and not f.environment_background):
-                                if seen_through:  # the background seen through them, as through thin walls
+                            # the background seen through transmissive surfaces, as through thin walls
+                            # (where the environment lights the scene, it is what they show instead)
+                            if wp.static(lobes and not f.environment_background and not environment_lights):
+                                if seen_through:
                                     radiance = radiance + wp.cw_mul(throughput, background)
-                                    break
                             if wp.static(environment_lights):
                                 # weighted against next-event estimation's choice of the environment
                                 weight = power_heuristic(previous_pdf,

@@ -298,9 +298,15 @@ HARD_VIEWS = [pw.Camera.look_at(eye=(0.0, 0.5, -3.0), target=(0.0, 0.5, -0.5), f
 @pytest.mark.parametrize("roughness", [0.0, 0.4])
 @pytest.mark.parametrize("view", range(len(HARD_VIEWS)))
 def test_no_nan_or_inf_at_grazing_angles_total_internal_reflection_and_inside(view, roughness):
+    """A prism (total internal reflection), a thin ball and a thin pane whose shading normals face
+    away from its geometry, smooth and rough, lit by a point light, a sphere light and the
+    environment, seen from outside, at grazing angles and from inside the prism: a finite,
+    checked frame."""
     scene = pw.Scene()
     scene.add_mesh(prism(glass(roughness=roughness, attenuation_color=(0.5, 0.7, 0.9), attenuation_distance=0.5)))
     scene.add_mesh(ball(glass(roughness=roughness, thickness=0.0), radius=0.3))
+    pane = quad(size=1.0, z=-0.2, material=glass(roughness=roughness, thickness=0.0))
+    scene.add_mesh(pw.Primitive(pane.positions + [0.0, 0.8, 0.0], pane.faces, pane.material, -pane.normals))
     scene.add_mesh(quad(size=20.0, z=-2.0))
     scene.add_light(pw.PointLight(position=(0.0, 3.0, 2.0), intensity=50.0))
     scene.add_light(pw.SphereLight(position=(1.0, 2.0, 1.0), radius=0.2, color=(1.0, 1.0, 1.0), intensity=5.0))
