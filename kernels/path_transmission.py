@@ -3,12 +3,13 @@ what a path does at a transmissive surface that bends light, with the dielectric
 kernels/transmission.py.
 
 A surface *scatters* light through it where it is the boundary of a volume (thickness > 0, not
-alpha-blended: a blended surface is a thin wall, as in the direct kernel) or a rough thin wall (its transmission roughness, transmission_roughness of the material's roughness
-factor, > 0); smooth thin walls pass light straight, as null events (kernels/path.py
-find_surface). At a scattering surface hit from outside, the path picks the transmission lobe with
-probability p = min(max channel of the transmitted share, MAX_PASSED) and is weighted by
-share / p, or keeps the surface's reflecting BRDF with weight 1 / (1 - p) (a one-sample choice
-between the BSDF's parts, Veach 1997, section 9.2.4): the transmission lobe then
+alpha-blended: a blended surface is a thin wall, as in the direct kernel) or a rough thin wall
+(transmission_roughness of its material's roughness factor > 0); smooth thin walls pass light
+straight, as null events (kernels/path.py find_surface). At a scattering surface hit from
+outside, the path picks the transmission lobe with probability p = min(max channel of the
+transmitted share, MAX_PASSED) and is weighted by share / p, or keeps the surface's reflecting
+BRDF with weight 1 / (1 - p) (a one-sample choice between the BSDF's parts, Veach 1997, section
+9.2.4): the transmission lobe then
 - enters a volume by Snell's law (refract_through; roughness 0, a delta event) or through a GGX
   normal visible from the viewer (sample_rough_interface, Walter et al. 2007 with Heitz 2018's
   visible normals), its weight G1 of the new direction;
