@@ -18,7 +18,8 @@ adds the environment's, each weighted by the power heuristic against light sampl
 rays do not see area lights, as in the direct kernel, and see the environment at full weight).
 Smooth thin transmissive walls are passed as null events,
 with the probability of the share they transmit (find_surface), and shadow rays pass them tinted
-by that share (transmittance). After three bounces, Russian roulette continues a path with
+by that share (transmittance); volumes and rough thin walls scatter paths through them, and stop
+shadow rays (kernels/path_transmission.py). After three bounces, Russian roulette continues a path with
 probability q = min(max throughput channel, 0.95), dividing its throughput by q. Every random
 number is a hash of (seed, pixel, sample, dimension) (kernels/random.py).
 
@@ -43,13 +44,15 @@ from .ibl import EnvironmentData, environment_radiance
 from .lights import light_sampler
 from .material_inputs import material_lookups
 from .microfacet import alpha_from_roughness
+from .path_transmission import (MAX_PASSED, MIRRORED, NOT_LIGHT_SAMPLED, SCATTERED, medium_after, thin_lobe_frame,
+                                transmission_lobes)
 from .random import sample_key, uniform, uniform2
 from .render import ROWS_TAKEN, STOP
 from .robust import FLOAT32_MAX, RAY_FAR, clamp_to_float32_max, offset_ray_origin, safe_normalize
 from .scene_data import MaterialData, SceneData, triangle_corners
 from .surface import MAX_PASS_THROUGH, SurfaceHit, segment_to_point, shadow_segment, surface_hit, surface_tests
 from .texture_coords import texture_lookups
-from .transmission import transmitted_share
+from .transmission import beer_lambert, transmitted_share
 from .work_queue import read_counter, take_next_item_from
 
 wp.set_module_options({"enable_backward": False})
@@ -66,9 +69,8 @@ LIGHT_POINT = wp.constant(1)
 LOBE_CHOICE = wp.constant(3)
 DIRECTION = wp.constant(4)
 ROULETTE = wp.constant(6)
+TRANSMISSION_CHOICE = wp.constant(7)
 COVERAGE_DIMENSION = wp.constant(1 << 24)
-# A path passes a thin transmissive wall with at most this probability (the rest reflects).
-MAX_PASSED = wp.constant(0.95)
 # Russian roulette starts at this bounce (0: the first surface), and keeps at most this share.
 ROULETTE_FROM_BOUNCE = wp.constant(3)
 MAX_SURVIVAL = wp.constant(0.95)
@@ -90,7 +92,10 @@ def path_kernel(features):
     # the environment is a light where it lights the scene (not where it is only the background)
     environment_lights = bool(f.environment)
     sample_light = light_sampler(f.point_lights, f.directional_lights, f.spot_lights)
-    scattering = f.diffuse or f.specular
+    # transmissive surfaces that bend light (volumes, rough thin walls) scatter paths through them
+    # (kernels/path_transmission.py), lit or not; without them, smooth thin walls are passed straight only
+    lobes = f.transmission and (f.volume or bool(f.rough_transmission))
+    scattering = f.diffuse or f.specular or lobes
     hit_uv, alpha_at, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion,
                                                               f.second_uv_set)
     # textures are filtered over one pixel's footprint where the camera ray meets its first
@@ -101,12 +106,18 @@ def path_kernel(features):
     base_color_at, surface_inputs, emission_at = inputs.base_color_at, inputs.surface_inputs, inputs.emission_at
     anisotropy_at, thin_film_at, shading_normal = inputs.anisotropy_at, inputs.thin_film_at, inputs.shading_normal
     transmission_at = inputs.transmission_at
+    if lobes:
+        scatters, scatter = transmission_lobes(f.volume, bool(f.rough_transmission))
 
     @wp.func
     def wall_share(scene: SceneData, h: SurfaceHit, mat: MaterialData, d: wp.vec3) -> wp.vec3:
-        """The share of light a thin transmissive wall passes straight through along ``d``, per
-        channel, 0 for an opaque surface: transmitted_share at the geometric normal's cosine (the
-        same both ways), textures read at full resolution."""
+        """The share of light a smooth thin transmissive wall passes straight through along ``d``,
+        per channel, 0 for an opaque surface and for one that scatters light (a volume's, a rough
+        wall's): transmitted_share at the geometric normal's cosine (the same both ways),
+        textures read at full resolution."""
+        if wp.static(lobes):
+            if scatters(mat):
+                return wp.vec3(0.0)
         uv = hit_texcoords(scene, h, hit_uv(scene, h), h.p, d, d)
         t = transmission_at(scene, mat, uv)
         if t <= 0.0:
@@ -118,8 +129,9 @@ def path_kernel(features):
     @wp.func
     def transmittance(scene: SceneData, origin: wp.vec3, direction: wp.vec3, max_t: float) -> wp.vec3:
         """The share of light that travels the shadow ray's segment: 0 where an opaque surface
-        blocks it, the product of the thin transmissive walls' shares on it otherwise (straight
-        through, as paths pass them); after MAX_PASS_THROUGH walls, 0."""
+        or one that scatters light (wall_share) blocks it, the product of the smooth thin walls'
+        shares on it otherwise (straight through, as paths pass them); after MAX_PASS_THROUGH
+        walls, 0."""
         if wp.static(not f.transmission):
             if occluded(scene, origin, direction, max_t):
                 return wp.vec3(0.0)
@@ -371,6 +383,10 @@ def path_kernel(features):
                 # directly has full weight) and the vertex it left
                 previous_pdf = float(0.0)
                 previous_p = cam.eye
+                # the attenuation coefficient of the volume the path travels in (0: none), and
+                # whether the path has only been scattered through transmissive surfaces since the eye
+                sigma = wp.vec3(0.0)
+                seen_through = bool(True)
                 for bounce in range(max_bounces + 1):
                     found, h, passed, met = find_surface(scene, origin, d, bounce == 0, key, bounce)
                     if wp.static(area):
@@ -383,6 +399,10 @@ def path_kernel(features):
                             radiance = radiance + wp.cw_mul(throughput, area_lights_met(
                                 scene, lights, previous_p, origin, d, reach, previous_pdf))
                     throughput = wp.cw_mul(throughput, passed)
+                    if wp.static(lobes and f.volume):
+                        if max_channel(sigma) > 0.0:  # absorbed on the way (Beer-Lambert); escaping: all
+                            throughput = wp.cw_mul(throughput, beer_lambert(
+                                sigma, wp.where(found, wp.length(h.p - origin), RAY_FAR)))
                     if not found:
                         if bounce == 0:
                             if met:  # transmissive walls cover the pixel
@@ -393,6 +413,11 @@ def path_kernel(features):
                                 if met:  # the background seen through them
                                     radiance = radiance + wp.cw_mul(throughput, background)
                         else:
+                            # the background seen through transmissive surfaces, as through thin walls
+                            # (where the environment lights the scene, it is what they show instead)
+                            if wp.static(lobes and not f.environment_background and not environment_lights):
+                                if seen_through:
+                                    radiance = radiance + wp.cw_mul(throughput, background)
                             if wp.static(environment_lights):
                                 # weighted against next-event estimation's choice of the environment
                                 weight = power_heuristic(previous_pdf,
@@ -430,10 +455,41 @@ def path_kernel(features):
                         break
                     v = -d
                     base = base_color_at(scene, h, mat, uv)
-                    if wp.static(f.transmission):
-                        # the diffuse lobe keeps what transmission leaves (KHR_materials_transmission)
-                        base = base * (1.0 - transmission_at(scene, mat, uv))
                     metallic, roughness, specular, f0_dielectric = surface_inputs(scene, mat, uv)
+                    dim = FIRST_BOUNCE_DIMENSION + bounce * DIMENSIONS_PER_BOUNCE
+                    scattered = bool(False)  # along a direction drawn by scatter
+                    through = bool(False)  # through a transmissive surface
+                    l = wp.vec3(0.0)
+                    pdf = float(0.0)
+                    if wp.static(f.transmission):
+                        t = transmission_at(scene, mat, uv)
+                        if wp.static(lobes):
+                            if t > 0.0 and scatters(mat):
+                                share = transmitted_share(base, metallic, t, specular, f0_dielectric,
+                                                          wp.abs(wp.dot(n, v)))
+                                event, l, event_weight = scatter(d, n, h.ng, h.back_face, mat, roughness, share,
+                                                                 uniform(key, dim + TRANSMISSION_CHOICE),
+                                                                 uniform(key, dim + LOBE_CHOICE),
+                                                                 uniform2(key, dim + DIRECTION))
+                                throughput = wp.cw_mul(throughput, event_weight)
+                                if event == SCATTERED:
+                                    scattered = True
+                                    through = True
+                                    pdf = NOT_LIGHT_SAMPLED
+                                    sigma = medium_after(sigma, mat, h.back_face, h.ng, l)
+                                if event == MIRRORED:
+                                    # a rough thin wall's lobe: the reflection of a white metal off
+                                    # the frame mirrored through the wall, sampled and lit below
+                                    n, v, mirrored_ng, roughness = thin_lobe_frame(n, v, h.ng, roughness, mat.ior)
+                                    h.ng = mirrored_ng
+                                    base = wp.vec3(1.0)
+                                    metallic = 1.0
+                                    t = 0.0
+                                    through = True
+                            if not through:
+                                seen_through = False
+                        # the diffuse lobe keeps what transmission leaves (KHR_materials_transmission)
+                        base = base * (1.0 - t)
                     aniso_t = wp.vec3(0.0)
                     anisotropy = float(0.0)
                     if wp.static(f.anisotropy):
@@ -443,21 +499,21 @@ def path_kernel(features):
                         thin_film = thin_film_at(scene, mat, uv)
                     alpha = alpha_from_roughness(roughness)
                     p_specular = lobe_probability(base, metallic, specular, f0_dielectric, wp.dot(n, v))
-                    dim = FIRST_BOUNCE_DIMENSION + bounce * DIMENSIONS_PER_BOUNCE
-                    lit = next_event(scene, lights, env, h, n, v, base, metallic, roughness, specular, mat.ior_eta,
-                                     mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film, alpha, p_specular,
-                                     key, dim)
-                    radiance = radiance + wp.cw_mul(throughput, lit)
-                    l = sample_brdf_direction(n, v, alpha, p_specular, uniform(key, dim + LOBE_CHOICE),
-                                              uniform2(key, dim + DIRECTION))
-                    if wp.dot(h.ng, l) <= 0.0 or wp.dot(n, l) <= 0.0:
-                        break  # below the surface: the BRDF is 0 there
-                    pdf = pdf_brdf_direction(n, v, l, alpha, p_specular)
-                    if pdf <= 0.0:
-                        break
-                    fr = brdf(n, v, l, base, metallic, roughness, specular, mat.ior_eta, mat.ior_kappa,
-                              f0_dielectric, aniso_t, anisotropy, thin_film)
-                    throughput = wp.cw_mul(throughput, fr) * (wp.dot(n, l) / pdf)
+                    if not scattered:  # the reflecting BRDF: next-event estimation, then a direction from it
+                        lit = next_event(scene, lights, env, h, n, v, base, metallic, roughness, specular,
+                                         mat.ior_eta, mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film,
+                                         alpha, p_specular, key, dim)
+                        radiance = radiance + wp.cw_mul(throughput, lit)
+                        l = sample_brdf_direction(n, v, alpha, p_specular, uniform(key, dim + LOBE_CHOICE),
+                                                  uniform2(key, dim + DIRECTION))
+                        if wp.dot(h.ng, l) <= 0.0 or wp.dot(n, l) <= 0.0:
+                            break  # below the surface: the BRDF is 0 there
+                        pdf = pdf_brdf_direction(n, v, l, alpha, p_specular)
+                        if pdf <= 0.0:
+                            break
+                        fr = brdf(n, v, l, base, metallic, roughness, specular, mat.ior_eta, mat.ior_kappa,
+                                  f0_dielectric, aniso_t, anisotropy, thin_film)
+                        throughput = wp.cw_mul(throughput, fr) * (wp.dot(n, l) / pdf)
                     strongest = max_channel(throughput)
                     if not (strongest > 0.0 and strongest < FLOAT32_MAX):
                         break  # nothing more to carry (or an overflow: dropped rather than Inf or NaN)

@@ -431,11 +431,8 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
 PATH_UNSIMULATED = {
     "clearcoat": ("clear coat (KHR_materials_clearcoat)", "its materials get their base glTF BRDF"),
     "sheen": ("sheen (KHR_materials_sheen)", "its materials get their base glTF BRDF"),
-    "volume": ("volume (KHR_materials_volume)", "its surfaces are thin walls: no refraction, no absorption"),
-    "rough_transmission": ("rough transmission (transmissive materials with roughness > 0)",
-                           "light passes them straight, unblurred"),
 }
-_PATH_DROPPED = ("clearcoat_textures", "sheen_textures", "transmissive_shadows")
+_PATH_DROPPED = ("clearcoat_textures", "sheen_textures")
 
 
 def path_unsimulated(decisions: list[Decision], scene) -> list[str]:
@@ -445,13 +442,8 @@ def path_unsimulated(decisions: list[Decision], scene) -> list[str]:
 
 
 def _unsimulated(decisions: list[Decision], scene) -> list[str]:
-    """The PATH_UNSIMULATED flags ``scene`` calls for: those ``decisions`` hold, and rough
-    transmission wherever a transmissive material is rough (the direct integrator drops its blur
-    where misses show a background colour; the path tracer would need it anyway)."""
-    names = [d.name for d in decisions if d.name in PATH_UNSIMULATED and d.present and d.name != "rough_transmission"]
-    if any(p.material.transmissive and not p.material.unlit and p.material.roughness > 0.0 for p in scene.primitives):
-        names.append("rough_transmission")
-    return names
+    """The PATH_UNSIMULATED flags ``scene`` calls for: those ``decisions`` hold."""
+    return [d.name for d in decisions if d.name in PATH_UNSIMULATED and d.present]
 
 
 def _listed(items: list[str]) -> str:
@@ -492,11 +484,29 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
         changed["area_lighting"] = (False, "no area-light rung: the path tracer samples area lights by next-event "
                                            "estimation (area_lighting= applies to integrator='direct')")
         changed["area_shadows"] = (False, "no separate area-light shadow rays: next-event estimation's serve them")
-    transmissive = sum(1 for p in scene.primitives if p.material.transmissive and not p.material.unlit)
+    transmissive = [p.material for p in scene.primitives if p.material.transmissive and not p.material.unlit]
     if transmissive:
         changed["transmission"] = (True, "paths and shadow rays pass straight through smooth thin transmissive walls, "
                                          "paths with the probability of the share transmitted (KHR_materials_"
-                                         f"transmission: {_count(transmissive, 'material')})")
+                                         f"transmission: {_count(len(transmissive), 'material')})")
+        changed["transmissive_shadows"] = (False, "no separate tinted shadows: shadow rays pass smooth thin walls "
+                                                  "tinted, and stop at volumes and rough walls (the light through "
+                                                  "them arrives by sampling their transmission lobes)")
+    volumes = sum(1 for m in transmissive if m.thickness > 0.0)
+    if volumes:
+        changed["volume"] = (True, "paths refract into and out of volumes (Snell's law, or Walter et al.'s rough "
+                                   "interface; Fresnel reflection and total internal reflection included), absorbed "
+                                   f"inside by Beer-Lambert (KHR_materials_volume: {_count(volumes, 'material')}; "
+                                   "one volume at a time, not nested)")
+    rough = sum(1 for m in transmissive if m.thickness <= 0.0 and m.roughness > 0.0 and m.ior != 1.0)
+    if rough and not next(d.present for d in decisions if d.name == "specular"):
+        changed["specular"] = (True, "specular lobe: rough thin walls transmit along its mirror image")
+    changed["rough_transmission"] = (
+        ("sampled", "paths pass rough thin walls along the GGX transmission lobe (the specular lobe mirrored "
+                    "through the wall), sampled, and next-event estimation lights it from behind them "
+                    f"({_count(rough, 'material')})") if rough else
+        (False, "no rough transmission lobe: " + ("no rough thin-walled transmissive material" if transmissive
+                                                  else "no transmissive material")))
     if scene.environment is not None:
         changed["environment"] = (IBL(), f"environment ({scene.environment!r}): the radiance of rays that escape "
                                          "the scene, a light importance-sampled by luminance for next-event estimation and weighted "
@@ -529,8 +539,8 @@ def path_features(f: Features) -> Features:
     return dataclasses.replace(
         f, integrator="path", visibility="raycast", supersampling=True, shadows="rays", occlusion_texture=False,
         environment=IBL() if f.environment else False, clearcoat=False, clearcoat_textures=False, sheen=False,
-        sheen_textures=False, volume=False, rough_transmission=False, transmissive_shadows=False,
-        area_lighting=False, area_shadows=False)
+        sheen_textures=False, rough_transmission="sampled" if f.rough_transmission else False,
+        transmissive_shadows=False, area_lighting=False, area_shadows=False)
 
 
 def check_integrator(integrator) -> str:

@@ -229,10 +229,6 @@ def test_extensions_the_path_tracer_does_not_simulate_are_named():
     assert pw.check(frame).ok
     text = pw.explain(scene, integrator="path")
     assert "clear coat (KHR_materials_clearcoat) not simulated by the path tracer yet" in text
-    glass = lit_plane(pw.Material(transmission=1.0, roughness=0.5, thickness=1.0))
-    with pytest.warns(UserWarning, match=r"volume \(KHR_materials_volume\) \(its surfaces are thin walls.*rough "
-                                         r"transmission"):
-        render(glass, head_on_camera(), size=4, spp=1)
 
 
 GLASS = pw.Material(base_color=(1.0, 1.0, 1.0), roughness=0.0, transmission=1.0)
