@@ -129,10 +129,11 @@ def path_kernel(features):
     @wp.func
     def transmittance(scene: SceneData, origin: wp.vec3, direction: wp.vec3, max_t: float) -> wp.vec3:
         """The share of light that travels the shadow ray's segment: 0 where an opaque surface
-        or one that scatters light (wall_share) blocks it, the product of the smooth thin walls'
-        shares on it otherwise (straight through, as paths pass them); after MAX_PASS_THROUGH
-        walls, 0."""
-        if wp.static(not f.transmission):
+        or one that scatters light (wall_share) blocks it, the product of the shares of the
+        surfaces it passes otherwise: a smooth thin wall's (straight through, as paths pass
+        them), and 1 - alpha + alpha times that of an alpha-blended surface (what find_surface
+        passes on average); after MAX_PASS_THROUGH surfaces, 0."""
+        if wp.static(not f.transmission and not f.alpha_blend):
             if occluded(scene, origin, direction, max_t):
                 return wp.vec3(0.0)
             return wp.vec3(1.0)
@@ -146,9 +147,14 @@ def path_kernel(features):
             b = surface_hit(scene, q.face, q.u, q.v, direction)
             mat = scene.materials[b.material]
             if not is_cut_out(scene, b, mat, hit_uv(scene, b)):
-                if mat.transmission <= 0.0:
-                    return wp.vec3(0.0)
-                share = wall_share(scene, b, mat, direction)
+                share = wp.vec3(0.0)
+                if wp.static(f.transmission):
+                    if mat.transmission > 0.0:
+                        share = wall_share(scene, b, mat, direction)
+                if wp.static(f.alpha_blend):
+                    if mat.alpha_blend == 1:
+                        alpha = wp.clamp(alpha_at(scene, b, mat, hit_uv(scene, b)), 0.0, 1.0)
+                        share = share * alpha + wp.vec3(1.0 - alpha)
                 if max_channel(share) <= 0.0:
                     return wp.vec3(0.0)
                 passed = wp.cw_mul(passed, share)

@@ -132,3 +132,20 @@ def test_alpha_blend_board_shows_no_red_cross():
         if prim.material.alpha_mode == "BLEND":
             prim.material.alpha_mode = "OPAQUE"
     assert red_pixels(render_checked(scene, camera, size=(256, 128), texture_filter="bilinear")) > 0
+
+
+@pytest.mark.parametrize("alpha", [0.0, 0.25, 0.75, 1.0])
+def test_the_path_tracers_shadow_rays_pass_a_blended_surface_by_one_minus_alpha(alpha):
+    """Paths pass a blended surface with probability 1 - alpha, so next-event estimation's shadow
+    rays must pass that share of the light, or the two strategies MIS combines would disagree: a
+    white Lambert plane under a black blended plane of coverage alpha, lit straight through it by
+    E lux, has radiance (1 - alpha) E / pi at max_bounces=1. The blended plane faces away from
+    the camera, whose rays pass single-sided back faces, so nothing is drawn: the result is exact."""
+    shade = quad(size=4.0, z=0.5, material=pw.Material(base_color=(0.0, 0.0, 0.0, alpha), specular=0.0,
+                                                       alpha_mode="BLEND", double_sided=False))
+    shade = pw.Primitive(shade.positions, shade.faces[:, ::-1], shade.material, -shade.normals, shade.uvs)
+    scene = layered((0.0, white_blend(1.0)))
+    scene.primitives.append(shade)
+    frame = pw.render(scene, CAMERA, width=SIZE[0], height=SIZE[1], spp=4, integrator="path", max_bounces=1,
+                      progress=False)
+    np.testing.assert_allclose(frame.rgb, (1.0 - alpha) * E / math.pi, rtol=1e-5, atol=1e-7)
