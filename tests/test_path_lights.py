@@ -344,3 +344,26 @@ def test_area_lights_that_emit_nothing_leave_the_table_empty_and_the_image_black
                                  intensity=0.0))
     frame = pw.render(scene, DOWN, width=8, height=8, spp=4, integrator="path", max_bounces=2, progress=False)
     assert np.all(frame.rgb == 0.0)
+
+
+def test_an_accumulator_keeps_the_light_table_of_the_scene_it_was_made_for():
+    """An Accumulator renders the upload it was made with. Once the scene gains lights and another
+    render has cached the new upload's table, the Accumulator's next pass must still choose among
+    its own upload's lights (an entry past them would read outside the light array): the passes
+    add up to one render of the original scene."""
+    def lit_plane():
+        scene = pw.Scene()
+        scene.add_mesh(quad(size=4.0))
+        scene.add_light(pw.PointLight(position=(0.3, 0.2, 1.0), intensity=2.0))
+        return scene
+
+    options = dict(width=8, height=8, max_bounces=1, seed=4, progress=False)
+    scene = lit_plane()
+    accumulator = pw.Accumulator(scene, DOWN, spp=2, **options)
+    accumulator.add()
+    for k in range(3):
+        scene.add_light(pw.PointLight(position=(-0.5 + 0.5 * k, 0.0, 1.0), intensity=1e3))
+    pw.render(scene, DOWN, spp=1, integrator="path", **options)
+    frame = accumulator.add()
+    expected = pw.render(lit_plane(), DOWN, spp=4, integrator="path", **options)
+    np.testing.assert_allclose(frame.rgb, expected.rgb, rtol=1e-5, atol=1e-7)
