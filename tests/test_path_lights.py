@@ -367,3 +367,18 @@ def test_an_accumulator_keeps_the_light_table_of_the_scene_it_was_made_for():
     frame = accumulator.add()
     expected = pw.render(lit_plane(), DOWN, spp=4, integrator="path", **options)
     np.testing.assert_allclose(frame.rgb, expected.rgb, rtol=1e-5, atol=1e-7)
+
+
+def test_one_bounce_equals_direct_monte_carlo_under_every_light_kind_at_once():
+    """A sphere light, a rectangle light and an environment together: next-event estimation
+    chooses among them with probabilities below 1 (the environment beside the table), and each
+    BSDF-sampled hit must weigh its light with the same selection probability the choice used;
+    any mismatch biases the sum away from the direct integrator's."""
+    scene = floor_with_blocker()
+    scene.add_light(pw.SphereLight(position=(-0.6, 0.6, 1.2), radius=0.5, intensity=3.0))
+    scene.add_light(pw.RectLight(position=(0.5, -0.4, 1.0), edge_u=(1.5, 0.0, 0.0), edge_v=(0.0, -1.2, 0.0),
+                                 intensity=2.0))
+    scene.environment = pw.Environment.uniform((0.6, 0.6, 0.6))
+    assert 0.05 < light_table(scene, upload(scene), environment_lights=True).environment < 0.95
+    assert_path_matches_direct(scene, dict(spp=4, area_lighting=pw.AreaLighting("monte_carlo", 64),
+                                           ibl=pw.IBL(method="monte_carlo", samples=256, shadowed=True)))
