@@ -285,7 +285,8 @@ def _renderer(scene, camera, width, height, spp, threads=None, shadows=True, bac
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
     width, height, spp = validate.render_size(width, height, spp, aovs=bool(aovs),
-                                              rasterized=bool(specialize) and visibility != "raycast")
+                                              rasterized=bool(specialize) and visibility != "raycast",
+                                              progressive=progressive)
     if threads is not None:
         threads = thread_count(threads)  # bounded before any work starts
     background_given = background is not None
