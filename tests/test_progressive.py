@@ -93,8 +93,9 @@ class FakeClock:
 
 
 def test_a_time_budget_adds_passes_while_the_next_fits(box, monkeypatch):
-    """With passes of a second each (a fake clock), a 5.5 s budget holds five: after the k-th,
-    k + 1 seconds have passed and another would end at about k + 2."""
+    """With passes of a second each (a fake clock read once before the first pass and once after
+    each), a 5.5 s budget holds five: after the k-th, k seconds have passed and another would end
+    at k + 1, so the sixth (ending at 6) does not fit."""
     scene, camera = box
     monkeypatch.setattr(progressive, "time", FakeClock())
     frame = pw.render(scene, camera, spp=2, time_budget=5.5, **OPTIONS)
