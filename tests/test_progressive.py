@@ -250,3 +250,5 @@ def test_the_memory_check_counts_the_sums_and_the_accumulated_frame(box, aovs, m
         pw.render(scene, camera, spp=1, time_budget=1.0, **options)
     with pytest.raises(InputError, match="a test's limit"):
         pw.Accumulator(scene, camera, spp=1, **options)
+    with pytest.raises(InputError, match="a test's limit"):
+        pw.explain(scene, width=width, height=height, integrator="path", aovs=aovs, target_error=0.1)
