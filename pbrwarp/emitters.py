@@ -20,8 +20,10 @@ estimates, in lumen-like units (luminance Y = 0.2126 R + 0.7152 G + 0.0722 B of 
   the table is empty.
 
 The table's entries depend on the uploaded scene alone (pbrwarp.gpu_scene.upload's GpuScene,
-which is rebuilt when a mesh, material or light changes), so they are kept in the scene's cache
-under that and built once, by one thread, for every render that shares it; the environment's
+which is rebuilt when a mesh, material or light changes), and are built from it, never from the
+scene as it is now: a render holding an older upload (a pw.Accumulator) must get entries that
+index that upload's light arrays. They are kept in the scene's cache under that upload and built
+once, by one thread, for every render that shares it; the environment's
 probability (its intensity can change between renders) is set in a LightTable of each render's
 own.
 """
@@ -57,7 +59,7 @@ def light_table(scene, gpu, environment_lights: bool = False) -> LightTable:
     """The light table of ``scene`` as uploaded in ``gpu`` (its entries kept in ``scene.cache``),
     with the scene's environment among the lights where ``environment_lights`` (the render's
     kernel lights with it; an environment seen only as background is no light)."""
-    built = scene.cache.get("emitters", _Same(gpu), lambda: _build(scene, gpu))
+    built = scene.cache.get("emitters", _Same(gpu), lambda: _build(gpu))
     table = LightTable()
     table.cdf, table.pmf, table.face, table.face_pmf = built.arrays
     table.count, table.punctual, table.area = built.count, built.punctual, built.area
@@ -123,19 +125,19 @@ def face_weights(positions: np.ndarray, indices: np.ndarray, face_primitive: np.
     return per_primitive[face_primitive] * area
 
 
-def bounding_radius(scene) -> float:
-    """The radius of the sphere about the scene's bounding box (0 for an empty scene)."""
-    if not scene.primitives:
+def bounding_radius(positions: np.ndarray) -> float:
+    """The radius of the sphere about the bounding box of ``positions`` (N, 3) (0 for none)."""
+    if len(positions) == 0:
         return 0.0
-    lo, hi = scene.bounds()
-    return 0.5 * float(np.linalg.norm(hi - lo))
+    points = positions.astype(np.float64)
+    return 0.5 * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
 
 
-def punctual_weights(scene, radius: float) -> np.ndarray:
-    """Each of ``scene.punctual_lights``' selection weight (see the module docstring), in float64;
-    ``radius`` that of the scene's bounding sphere."""
+def punctual_weights(lights, radius: float) -> np.ndarray:
+    """Each punctual light's selection weight (see the module docstring), in float64; ``radius``
+    that of the scene's bounding sphere."""
     weights = []
-    for light in scene.punctual_lights:
+    for light in lights:
         y = float(np.asarray(light.color, dtype=np.float64) @ LUMINANCE) * light.intensity
         if light.kind == DIRECTIONAL:
             weights.append(y * math.pi * max(radius, 1e-30) ** 2)
@@ -146,24 +148,25 @@ def punctual_weights(scene, radius: float) -> np.ndarray:
     return np.array(weights, dtype=np.float64)
 
 
-def area_weights(scene) -> np.ndarray:
-    """Each of ``scene.area_lights``' selection weight, pi Y(color) intensity area, in float64."""
+def area_weights(lights) -> np.ndarray:
+    """Each area light's selection weight, pi Y(color) intensity area, in float64."""
     return np.array([float(np.asarray(light.color, dtype=np.float64) @ LUMINANCE) * light.power
-                     for light in scene.area_lights], dtype=np.float64)
+                     for light in lights], dtype=np.float64)
 
 
-def _build(scene, gpu) -> _Built:
+def _build(gpu) -> _Built:
     geometry = gpu.geometry
     rows = gpu.material_rows
     emissive = np.array([[float(c) for c in row.emissive] if not row.unlit else [0.0, 0.0, 0.0] for row in rows],
                         dtype=np.float64).reshape(-1, 3)
     double_sided = np.array([bool(row.double_sided) for row in rows])
     face_primitive = geometry.face_primitive.numpy()
-    faces = face_weights(geometry.positions.numpy(), geometry.indices.numpy(), face_primitive, emissive,
-                         double_sided)
+    positions = geometry.positions.numpy()
+    faces = face_weights(positions, geometry.indices.numpy(), face_primitive, emissive, double_sided)
     emitting = np.flatnonzero(faces > 0.0).astype(np.int32)
-    radius = bounding_radius(scene)
-    weights = np.concatenate([punctual_weights(scene, radius), area_weights(scene), faces[emitting]])
+    radius = bounding_radius(positions)
+    weights = np.concatenate([punctual_weights(gpu.punctual_lights, radius), area_weights(gpu.area_lights),
+                              faces[emitting]])
     weights = np.where(np.isfinite(weights), weights, np.finfo(np.float32).max)
     total = weights.sum()
     count = len(weights) if total > 0.0 else 0
@@ -172,7 +175,7 @@ def _build(scene, gpu) -> _Built:
     if count:
         cdf[-1] = 1.0  # rounding must leave no u in [0, 1) past the last entry
     face_pmf = np.zeros(max(len(face_primitive), 1), dtype=np.float32)
-    punctual, area = len(scene.punctual_lights), len(scene.area_lights)
+    punctual, area = len(gpu.punctual_lights), len(gpu.area_lights)
     if count:
         face_pmf[emitting] = pmf[punctual + area:]
     arrays = (

@@ -73,6 +73,9 @@ class GpuScene:
     material_rows: list
     # kept alive while ``data`` refers to them; the first is the uploaded geometry
     _keep: tuple
+    # the lights whose rows data.lights and data.area_lights hold, in their order
+    punctual_lights: tuple = ()
+    area_lights: tuple = ()
 
     @property
     def geometry(self) -> _Geometry:
@@ -352,7 +355,8 @@ def _upload_rows(scene, prims, geometry: _Geometry, texels: _Texels) -> GpuScene
     data.area_lights = wp.array(area_lights if area_lights else [AreaLightData()], dtype=AreaLightData, device="cpu")
     data.num_area_lights = len(area_lights)
     return GpuScene(data=data, material_rows=materials,
-                    _keep=(geometry, texels, data.materials, data.lights, data.area_lights))
+                    _keep=(geometry, texels, data.materials, data.lights, data.area_lights),
+                    punctual_lights=tuple(scene.punctual_lights), area_lights=tuple(scene.area_lights))
 
 
 def _content_key(value):

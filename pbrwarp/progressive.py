@@ -138,7 +138,7 @@ class Accumulation:
         with self._lock:
             n = self._pass_spp
             if spp is not None:  # the path tracer ray casts: no per-sample buffers
-                n = validate.render_size(*self._size, spp, rasterized=False)[2]
+                n = validate.render_size(*self._size, spp, rasterized=False, progressive=True)[2]
             start = time.perf_counter()
             added = 0
             bar = progress_bar(self._progress if budget or target else False, unit="spp", desc="render", delay=1.0,

@@ -285,7 +285,8 @@ def _renderer(scene, camera, width, height, spp, threads=None, shadows=True, bac
     if not isinstance(scene, Scene):
         raise InputTypeError(f"render takes a pbrwarp.Scene, got {type(scene).__name__}")
     width, height, spp = validate.render_size(width, height, spp, aovs=bool(aovs),
-                                              rasterized=bool(specialize) and visibility != "raycast")
+                                              rasterized=bool(specialize) and visibility != "raycast",
+                                              progressive=progressive)
     if threads is not None:
         threads = thread_count(threads)  # bounded before any work starts
     background_given = background is not None
@@ -425,7 +426,6 @@ def _render_path(scene: Scene, gpu, features: Features, camera: Camera, width: i
                   spp)
 
 
-
 def _frame(out_rgb, out_alpha, out_depth, out_normal, out_albedo, aovs: bool, width: int, height: int,
            background, spp: int) -> Frame:
     """The Frame a render kernel's output arrays hold (depth, normal and albedo only with ``aovs``)."""
@@ -438,6 +438,7 @@ def _frame(out_rgb, out_alpha, out_depth, out_normal, out_albedo, aovs: bool, wi
         albedo=out_albedo.numpy().reshape(height, width, 3) if aovs else None,
         spp=spp,
     )
+
 
 def explain(scene: Scene, camera: Camera | None = None, shadows=True, spp: int = 1, aovs: bool = True, quality: str | None = None,
             brdf: BRDF | None = None, visibility: str = "auto", width: int = 800, height: int = 600,
@@ -459,13 +460,14 @@ def explain(scene: Scene, camera: Camera | None = None, shadows=True, spp: int =
     if unknown:
         raise InputTypeError(f"explain got {', '.join(map(repr, unknown))}, which render does not take "
                              f"(render's options: {', '.join(list(inspect.signature(render).parameters)[1:])})")
+    progressive = [checked_positive(_render_options.get(name), name) for name in ("time_budget", "target_error")]
+    progressive = progressive != [None, None]
     width, height, spp = validate.render_size(width, height, spp, aovs=bool(aovs),
                                               rasterized=bool(_render_options.get("specialize", True))
-                                              and visibility != "raycast")
+                                              and visibility != "raycast", progressive=progressive)
     samples = width * height * spp
     path, bounces, _ = _path_options(integrator, max_bounces, _render_options.get("first_sample", 0), spp, shadows)
-    progressive = [checked_positive(_render_options.get(name), name) for name in ("time_budget", "target_error")]
-    if not path and progressive != [None, None]:
+    if not path and progressive:
         raise _progressive_needs_path()
     return describe(decide(scene, upload(scene), shadows=shadows, spp=spp, aovs=aovs, brdf=brdf_for_quality(quality, brdf),
                            visibility=visibility, samples=samples, ibl=ibl_for_quality(quality, ibl),

@@ -131,12 +131,22 @@ MEMORY_SHARE = 0.5
 PIXEL_BYTES = 12 + 4
 AOV_PIXEL_BYTES = 4 + 12 + 12
 SAMPLE_BYTES = 8 + 8
+# Bytes a progressive render (pbrwarp/progressive.py) keeps per pixel beside each pass's outputs:
+# the float64 sums of radiance, squared radiance and coverage and the accumulated frame's
+# radiance, coverage and variance; with AOVs, the sums of depth (float32), normal and albedo
+# (float64) and the accumulated frame's depth, normal and albedo.
+PROGRESSIVE_PIXEL_BYTES = 24 + 24 + 8 + 12 + 4 + 12
+PROGRESSIVE_AOV_PIXEL_BYTES = 4 + 24 + 24 + 4 + 12 + 12
 
 
-def frame_bytes(width: int, height: int, spp: int, aovs: bool = True, rasterized: bool = True) -> int:
-    """Bytes of the buffers a width x height render at ``spp`` allocates: its outputs, and the
-    per-sample buffers of rasterized primary visibility (``rasterized``)."""
+def frame_bytes(width: int, height: int, spp: int, aovs: bool = True, rasterized: bool = True,
+                progressive: bool = False) -> int:
+    """Bytes of the buffers a width x height render at ``spp`` allocates: its outputs, the
+    per-sample buffers of rasterized primary visibility (``rasterized``), and the sums and
+    accumulated frame of a progressive render (``progressive``)."""
     per_pixel = PIXEL_BYTES + (AOV_PIXEL_BYTES if aovs else 0) + (SAMPLE_BYTES * spp if rasterized else 0)
+    if progressive:
+        per_pixel += PROGRESSIVE_PIXEL_BYTES + (PROGRESSIVE_AOV_PIXEL_BYTES if aovs else 0)
     return width * height * per_pixel
 
 
@@ -200,10 +210,12 @@ def _bytes_text(n: float) -> str:
         n /= 1024
 
 
-def render_size(width, height, spp, aovs: bool = True, rasterized: bool = True) -> tuple[int, int, int]:
+def render_size(width, height, spp, aovs: bool = True, rasterized: bool = True,
+                progressive: bool = False) -> tuple[int, int, int]:
     """(width, height, spp) of a render, checked before anything is allocated: whole numbers >= 1
     within MAX_IMAGE_SIDE, MAX_SPP, MAX_SAMPLES and MAX_ROW_SAMPLES, and the frame's buffers
-    (:func:`frame_bytes`) within :func:`memory_limit`. One error names every limit exceeded."""
+    (:func:`frame_bytes`, with a progressive render's sums where ``progressive``) within
+    :func:`memory_limit`. One error names every limit exceeded."""
     width = positive_int(width, "width")
     height = positive_int(height, "height")
     spp = positive_int(spp, "spp")
@@ -216,7 +228,7 @@ def render_size(width, height, spp, aovs: bool = True, rasterized: bool = True) 
         problems.append(f"{width * height * spp:.3g} samples, more than 2^31 - 1")
     if width * spp > MAX_ROW_SAMPLES:
         problems.append(f"{width * spp:.3g} samples a row, more than 2^28 - 1")
-    needed = frame_bytes(width, height, spp, aovs, rasterized)
+    needed = frame_bytes(width, height, spp, aovs, rasterized, progressive)
     limit, bound = memory_limit()
     if limit is not None and needed > limit:
         problems.append(f"{_bytes_text(needed)} of buffers, more than the {_bytes_text(limit)} allowed ({bound})")

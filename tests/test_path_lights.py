@@ -344,3 +344,41 @@ def test_area_lights_that_emit_nothing_leave_the_table_empty_and_the_image_black
                                  intensity=0.0))
     frame = pw.render(scene, DOWN, width=8, height=8, spp=4, integrator="path", max_bounces=2, progress=False)
     assert np.all(frame.rgb == 0.0)
+
+
+def test_an_accumulator_keeps_the_light_table_of_the_scene_it_was_made_for():
+    """An Accumulator renders the upload it was made with. Once the scene gains lights and another
+    render has cached the new upload's table, the Accumulator's next pass must still choose among
+    its own upload's lights (an entry past them would read outside the light array): the passes
+    add up to one render of the original scene."""
+    def lit_plane():
+        scene = pw.Scene()
+        scene.add_mesh(quad(size=4.0))
+        scene.add_light(pw.PointLight(position=(0.3, 0.2, 1.0), intensity=2.0))
+        return scene
+
+    options = dict(width=8, height=8, max_bounces=1, seed=4, progress=False)
+    scene = lit_plane()
+    accumulator = pw.Accumulator(scene, DOWN, spp=2, **options)
+    accumulator.add()
+    for k in range(3):
+        scene.add_light(pw.PointLight(position=(-0.5 + 0.5 * k, 0.0, 1.0), intensity=1e3))
+    pw.render(scene, DOWN, spp=1, integrator="path", **options)
+    frame = accumulator.add()
+    expected = pw.render(lit_plane(), DOWN, spp=4, integrator="path", **options)
+    np.testing.assert_allclose(frame.rgb, expected.rgb, rtol=1e-5, atol=1e-7)
+
+
+def test_one_bounce_equals_direct_monte_carlo_under_every_light_kind_at_once():
+    """A sphere light, a rectangle light and an environment together: next-event estimation
+    chooses among them with probabilities below 1 (the environment beside the table), and each
+    BSDF-sampled hit must weigh its light with the same selection probability the choice used;
+    any mismatch biases the sum away from the direct integrator's."""
+    scene = floor_with_blocker()
+    scene.add_light(pw.SphereLight(position=(-0.6, 0.6, 1.2), radius=0.5, intensity=3.0))
+    scene.add_light(pw.RectLight(position=(0.5, -0.4, 1.0), edge_u=(1.5, 0.0, 0.0), edge_v=(0.0, -1.2, 0.0),
+                                 intensity=2.0))
+    scene.environment = pw.Environment.uniform((0.6, 0.6, 0.6))
+    assert 0.05 < light_table(scene, upload(scene), environment_lights=True).environment < 0.95
+    assert_path_matches_direct(scene, dict(spp=4, area_lighting=pw.AreaLighting("monte_carlo", 64),
+                                           ibl=pw.IBL(method="monte_carlo", samples=256, shadowed=True)))

@@ -93,8 +93,9 @@ class FakeClock:
 
 
 def test_a_time_budget_adds_passes_while_the_next_fits(box, monkeypatch):
-    """With passes of a second each (a fake clock), a 5.5 s budget holds five: after the k-th,
-    k + 1 seconds have passed and another would end at about k + 2."""
+    """With passes of a second each (a fake clock read once before the first pass and once after
+    each), a 5.5 s budget holds five: after the k-th, k seconds have passed and another would end
+    at k + 1, so the sixth (ending at 6) does not fit."""
     scene, camera = box
     monkeypatch.setattr(progressive, "time", FakeClock())
     frame = pw.render(scene, camera, spp=2, time_budget=5.5, **OPTIONS)
@@ -221,3 +222,33 @@ def test_command_line_time_budget_and_target_error(tmp_path, monkeypatch, capsys
     out.unlink()
     assert cli.main(base[:-2] + ["--time-budget", "1"]) == cli.EXIT_USAGE  # the direct integrator
     assert "integrator='path'" in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize("aovs", [True, False])
+def test_the_memory_check_counts_the_sums_and_the_accumulated_frame(box, aovs, monkeypatch):
+    """frame_bytes(progressive=True) adds exactly the arrays an Accumulation keeps per pixel (its
+    float64 sums and the accumulated frame), and a progressive render is refused where only they
+    would pass the memory limit."""
+    from pbrwarp import validate
+
+    scene, camera = box
+    options = {**OPTIONS, "aovs": aovs}
+    accumulator = pw.Accumulator(scene, camera, spp=1, **options)
+    accumulator.add()
+    frame = accumulator.add()
+    sums = accumulator._sums
+    kept = [sums.rgb, sums.rgb_squared, sums.alpha, sums.depth, sums.normal, sums.albedo, frame.rgb, frame.alpha,
+            frame.variance, frame.depth, frame.normal, frame.albedo]
+    width, height = OPTIONS["width"], OPTIONS["height"]
+    extra = (validate.frame_bytes(width, height, 1, aovs, rasterized=False, progressive=True)
+             - validate.frame_bytes(width, height, 1, aovs, rasterized=False))
+    assert extra == sum(a.nbytes for a in kept if a is not None)
+    plain = validate.frame_bytes(width, height, 1, aovs, rasterized=True)
+    monkeypatch.setattr(validate, "memory_limit", lambda: (plain, "a test's limit"))
+    assert pw.render(scene, camera, spp=1, **options).spp == 1
+    with pytest.raises(InputError, match="a test's limit"):
+        pw.render(scene, camera, spp=1, time_budget=1.0, **options)
+    with pytest.raises(InputError, match="a test's limit"):
+        pw.Accumulator(scene, camera, spp=1, **options)
+    with pytest.raises(InputError, match="a test's limit"):
+        pw.explain(scene, width=width, height=height, integrator="path", aovs=aovs, target_error=0.1)
