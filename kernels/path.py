@@ -48,7 +48,7 @@ from .path_transmission import (MAX_PASSED, MIRRORED, NOT_LIGHT_SAMPLED, SCATTER
                                 transmission_lobes)
 from .random import sample_key, uniform, uniform2
 from .render import ROWS_TAKEN, STOP
-from .robust import FLOAT32_MAX, RAY_FAR, clamp_to_float32_max, offset_ray_origin, safe_normalize
+from .robust import FLOAT32_MAX, RAY_FAR, SHADOW_RAY_SHORTENING, clamp_to_float32_max, offset_ray_origin, safe_normalize
 from .scene_data import MaterialData, SceneData, triangle_corners
 from .surface import MAX_PASS_THROUGH, SurfaceHit, segment_to_point, shadow_segment, surface_hit, surface_tests
 from .texture_coords import texture_lookups
@@ -127,12 +127,13 @@ def path_kernel(features):
                                  wp.abs(wp.dot(h.ng, d)))
 
     @wp.func
-    def transmittance(scene: SceneData, origin: wp.vec3, direction: wp.vec3, max_t: float) -> wp.vec3:
+    def transmittance(scene: SceneData, origin: wp.vec3, direction: wp.vec3, max_t: float, blended: bool) -> wp.vec3:
         """The share of light that travels the shadow ray's segment: 0 where an opaque surface
         or one that scatters light (wall_share) blocks it, the product of the shares of the
         surfaces it passes otherwise: a smooth thin wall's (straight through, as paths pass
-        them), and 1 - alpha + alpha times that of an alpha-blended surface (what find_surface
-        passes on average); after MAX_PASS_THROUGH surfaces, 0."""
+        them), and, where ``blended``, 1 - alpha + alpha times that of an alpha-blended surface
+        (what find_surface passes on average; without ``blended`` such a surface passes all:
+        the caller has drawn its coverage); after MAX_PASS_THROUGH surfaces, 0."""
         if wp.static(not f.transmission and not f.alpha_blend):
             if occluded(scene, origin, direction, max_t):
                 return wp.vec3(0.0)
@@ -153,7 +154,9 @@ def path_kernel(features):
                         share = wall_share(scene, b, mat, direction)
                 if wp.static(f.alpha_blend):
                     if mat.alpha_blend == 1:
-                        alpha = wp.clamp(alpha_at(scene, b, mat, hit_uv(scene, b)), 0.0, 1.0)
+                        alpha = float(0.0)
+                        if blended:
+                            alpha = wp.clamp(alpha_at(scene, b, mat, hit_uv(scene, b)), 0.0, 1.0)
                         share = share * alpha + wp.vec3(1.0 - alpha)
                 if max_channel(share) <= 0.0:
                     return wp.vec3(0.0)
@@ -223,20 +226,25 @@ def path_kernel(features):
 
     @wp.func
     def area_lights_met(scene: SceneData, lights: LightTable, p: wp.vec3, origin: wp.vec3, d: wp.vec3, reach: float,
-                        bsdf_pdf: float) -> wp.vec3:
+                        met: bool, bsdf_pdf: float) -> wp.vec3:
         """The radiance of the area lights the BSDF-sampled ray from ``origin`` (offset from the
         vertex p it was sampled at) along ``d`` meets before ``reach`` (the surface it reaches),
         each weighted by the power heuristic against next-event estimation's density at p, and
-        by the share of thin transmissive walls on the way (transmittance, as shadow rays)."""
+        by the share of thin transmissive walls on the way (transmittance, as shadow rays). Where
+        the ray ``met`` such a wall, ``reach`` is unbounded and alpha-blended surfaces pass their
+        mean share too; otherwise the ray's own draws decided them."""
         total = wp.vec3(0.0)
         # the table holds every area light, unless none of the scene's lights emits (then it is empty)
         for k in range(wp.min(scene.num_area_lights, lights.area)):
             light = scene.area_lights[k]
             t = area_light_distance(light, origin, d)
-            if t > 0.0 and t < reach:
+            # shortened as next-event estimation's shadow rays are (segment_to_point), so that a
+            # surface through the light (a rect light flush with a ceiling) hides it from neither
+            shortened = t * (1.0 - SHADOW_RAY_SHORTENING)
+            if t > 0.0 and shortened < reach:
                 passed = wp.vec3(1.0)
                 if wp.static(f.transmission):
-                    passed = transmittance(scene, origin, d, t)
+                    passed = transmittance(scene, origin, d, shortened, met)
                 light_pdf = lights.pmf[lights.punctual + k] * (1.0 - lights.environment) * pdf_area_light(light, p, d)
                 total = total + wp.cw_mul(light.radiance, passed) * power_heuristic(bsdf_pdf, light_pdf)
         return total
@@ -249,7 +257,7 @@ def path_kernel(features):
         """The radiance reflected towards v of light ``le`` arriving along l, sampled with solid-angle
         ``pdf`` (choice included) by next-event estimation: passed through the shadow ray's
         segment (transmittance), MIS-weighted (power heuristic) against BSDF sampling."""
-        passed = transmittance(scene, origin, direction, max_t)
+        passed = transmittance(scene, origin, direction, max_t, True)
         if max_channel(passed) <= 0.0:
             return wp.vec3(0.0)
         fr = brdf(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
@@ -292,7 +300,7 @@ def path_kernel(features):
                 if max_channel(ls.irradiance) <= 0.0:
                     return wp.vec3(0.0)
                 origin, direction, max_t = shadow_segment(scene, i, h, ls)
-                passed = transmittance(scene, origin, direction, max_t)
+                passed = transmittance(scene, origin, direction, max_t, True)
                 if max_channel(passed) <= 0.0:
                     return wp.vec3(0.0)
                 fr = brdf(n, v, ls.to_light, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t,
@@ -338,6 +346,9 @@ def path_kernel(features):
                 return wp.vec3(0.0)
             # the emitted radiance's texture is read at full resolution
             le = emission_at(scene, mat, hit_texcoords(scene, e, hit_uv(scene, e), target, l, l))
+            if wp.static(f.alpha_blend):
+                if mat.alpha_blend == 1:  # paths meet it with probability alpha: it emits that share
+                    le = le * wp.clamp(alpha_at(scene, e, mat, hit_uv(scene, e)), 0.0, 1.0)
             if max_channel(le) <= 0.0:
                 return wp.vec3(0.0)
             origin, direction, max_t = segment_to_point(h, target, l)
@@ -403,7 +414,7 @@ def path_kernel(features):
                             if found and not met:
                                 reach = wp.dot(h.p - origin, d)
                             radiance = radiance + wp.cw_mul(throughput, area_lights_met(
-                                scene, lights, previous_p, origin, d, reach, previous_pdf))
+                                scene, lights, previous_p, origin, d, reach, met, previous_pdf))
                     throughput = wp.cw_mul(throughput, passed)
                     if wp.static(lobes and f.volume):
                         if max_channel(sigma) > 0.0:  # absorbed on the way (Beer-Lambert); escaping: all

@@ -149,3 +149,25 @@ def test_the_path_tracers_shadow_rays_pass_a_blended_surface_by_one_minus_alpha(
     frame = pw.render(scene, CAMERA, width=SIZE[0], height=SIZE[1], spp=4, integrator="path", max_bounces=1,
                       progress=False)
     np.testing.assert_allclose(frame.rgb, (1.0 - alpha) * E / math.pi, rtol=1e-5, atol=1e-7)
+
+
+def test_a_blended_emitter_lights_the_path_tracers_scene_by_its_coverage():
+    """Paths meet an alpha-blended emitter with probability alpha; next-event estimation must weigh
+    its emission by alpha too: a white plane under a blended emitter of coverage 0.4 and radiance
+    L is lit as under an opaque one of radiance 0.4 L (the emitter faces the plane, away from the
+    camera, whose rays pass single-sided back faces)."""
+
+    def lit_by(material):
+        panel = quad(size=1.5, z=1.0, material=material)
+        scene = layered((0.0, white_blend(1.0)), light=False)
+        scene.primitives.append(pw.Primitive(panel.positions, panel.faces[:, ::-1], material, -panel.normals,
+                                             panel.uvs))
+        return pw.render(scene, head_on_camera(distance=0.9, fov=60.0), width=16, height=16, spp=64,
+                         integrator="path", max_bounces=1, seed=4, progress=False).rgb.mean()
+
+    glow = (2.0, 2.0, 2.0)
+    blended = lit_by(pw.Material(base_color=(0.0, 0.0, 0.0, 0.4), specular=0.0, emissive=glow, alpha_mode="BLEND",
+                                 double_sided=False))
+    opaque = lit_by(pw.Material(base_color=(0.0, 0.0, 0.0), specular=0.0, emissive=tuple(0.4 * g for g in glow),
+                                double_sided=False))
+    assert blended == pytest.approx(opaque, rel=0.03)

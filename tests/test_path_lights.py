@@ -382,3 +382,25 @@ def test_one_bounce_equals_direct_monte_carlo_under_every_light_kind_at_once():
     assert 0.05 < light_table(scene, upload(scene), environment_lights=True).environment < 0.95
     assert_path_matches_direct(scene, dict(spp=4, area_lighting=pw.AreaLighting("monte_carlo", 64),
                                            ibl=pw.IBL(method="monte_carlo", samples=256, shadowed=True)))
+
+
+def test_a_rect_light_flush_with_a_ceiling_lights_as_one_just_below_it():
+    """BSDF-sampled rays reach the ceiling and the light in its plane at the same distance, up to
+    rounding; they must count the light as next-event estimation's shadow rays (which stop short
+    of it) do, or a glossy floor loses about half the light MIS gives that strategy."""
+
+    def floor_lit_from(height):
+        scene = pw.Scene()
+        scene.add_mesh(quad(size=4.0, z=0.0, material=pw.Material(base_color=(1.0, 1.0, 1.0), metallic=1.0,
+                                                                  roughness=0.15)))
+        ceiling = quad(size=4.0, z=2.0)
+        scene.primitives.append(pw.Primitive(ceiling.positions, ceiling.faces[:, ::-1], ceiling.material,
+                                             -ceiling.normals, ceiling.uvs))
+        scene.add_light(pw.RectLight(position=(0.0, 0.0, height), edge_u=(1.0, 0.0, 0.0), edge_v=(0.0, -1.0, 0.0),
+                                     intensity=5.0))
+        return scene
+
+    camera = pw.Camera.look_at(eye=(0.0, 0.0, 1.5), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_y=50.0)
+    flush, below = (pw.render(floor_lit_from(z), camera, width=24, height=24, spp=32, integrator="path",
+                              max_bounces=1, seed=3, progress=False).rgb.mean() for z in (2.0, 1.999))
+    assert flush == pytest.approx(below, rel=0.03)
