@@ -105,20 +105,22 @@ class Accumulation:
         self._next_sample = int(first_sample)
         self._progress = progress
         self._sums = None
-        self._frame = None
+        # (frame, samples per pixel) after the last pass, replaced whole, so that readers never
+        # wait for the add that holds the lock
+        self._published = (None, 0)
         self._lock = threading.Lock()
 
     @property
     def spp(self) -> int:
-        """Samples per pixel accumulated so far (0 before the first :meth:`add`)."""
-        with self._lock:
-            return 0 if self._sums is None else self._sums.samples
+        """Samples per pixel accumulated so far (0 before the first :meth:`add`); read without
+        waiting for an :meth:`add` under way."""
+        return self._published[1]
 
     @property
     def frame(self) -> Frame | None:
-        """The frame of every sample added so far (None before the first :meth:`add`)."""
-        with self._lock:
-            return self._frame
+        """The frame of every sample added so far (None before the first :meth:`add`); read
+        without waiting for an :meth:`add` under way (the frame of the passes done so far)."""
+        return self._published[0]
 
     def add(self, spp: int | None = None, time_budget: float | None = None,
             target_error: float | None = None) -> Frame:
@@ -158,8 +160,9 @@ class Accumulation:
                         self._sums = _Sums(frame)
                     else:
                         self._sums.add(frame)
-                    self._frame = self._sums.frame(frame.background)
-                    error = self._frame.relative_error()
+                    accumulated = self._sums.frame(frame.background)
+                    self._published = (accumulated, self._sums.samples)
+                    error = accumulated.relative_error()
                     if bar is not None:
                         bar.update(n)
                         bar.set_postfix(error=f"{error:.3g}")
@@ -174,4 +177,4 @@ class Accumulation:
             finally:
                 if bar is not None:
                     bar.close()
-            return self._frame
+            return accumulated

@@ -252,3 +252,29 @@ def test_the_memory_check_counts_the_sums_and_the_accumulated_frame(box, aovs, m
         pw.Accumulator(scene, camera, spp=1, **options)
     with pytest.raises(InputError, match="a test's limit"):
         pw.explain(scene, width=width, height=height, integrator="path", aovs=aovs, target_error=0.1)
+
+
+def test_frame_and_spp_are_read_without_waiting_for_a_pass_under_way(box):
+    """A display thread reads the frame of the passes done so far while add() renders the next."""
+    scene, camera = box
+    one_pass = pw.render(scene, camera, spp=1, **OPTIONS)
+    started, release = threading.Event(), threading.Event()
+    passes = []
+
+    def run(spp, first_sample, progress):
+        passes.append(first_sample)
+        if len(passes) == 2:  # the second pass waits until the reader has looked
+            started.set()
+            assert release.wait(timeout=60)
+        return one_pass
+
+    accumulation = progressive.Accumulation(run, (OPTIONS["width"], OPTIONS["height"]), 1, 0, False)
+    adder = threading.Thread(target=lambda: [accumulation.add(), accumulation.add()])
+    adder.start()
+    try:
+        assert started.wait(timeout=60)
+        assert accumulation.spp == 1 and accumulation.frame is not None  # the first pass, at once
+    finally:
+        release.set()
+        adder.join(timeout=60)
+    assert accumulation.spp == 2 and passes == [0, 1]
