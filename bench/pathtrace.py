@@ -48,6 +48,7 @@ from common import command_line, write_results  # noqa: E402
 
 import pbrwarp as pw  # noqa: E402
 from pbrwarp import meshes  # noqa: E402
+from pbrwarp.kernels.path import ROULETTE_FROM_BOUNCE  # noqa: E402
 
 LLVM = Path("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1")
 
@@ -111,15 +112,18 @@ def _look_at(eye, target, up):
                                           up=[float(c) for c in up])
 
 
-def mitsuba_renderer(mi, spec):
+def mitsuba_renderer(mi, spec, rr_depth=None):
+    """Mitsuba's path integrator on ``spec``; Russian roulette from its ``rr_depth``-th surface
+    (None: its default, 5)."""
     import drjit as dr
 
     loaded = mi.load_dict(spec)
     integrators = {}
+    roulette = {} if rr_depth is None else {"rr_depth": rr_depth}
 
     def render(segments, seed):
         if segments not in integrators:
-            integrators[segments] = mi.load_dict({"type": "path", "max_depth": segments})
+            integrators[segments] = mi.load_dict({"type": "path", "max_depth": segments, **roulette})
         image = mi.render(loaded, spp=spec["sensor"]["sampler"]["sample_count"], seed=seed,
                           integrator=integrators[segments])
         dr.eval(image)
@@ -189,8 +193,10 @@ def main(argv=None):
     if isinstance(mi, str):
         print(f"Mitsuba not measured: {mi}", file=sys.stderr)
     else:
-        renderers["mitsuba"] = mitsuba_renderer(mi, mitsuba_scene_dict(scene, cam, args.size, args.spp,
-                                                                       Path(folder.name)))
+        spec = mitsuba_scene_dict(scene, cam, args.size, args.spp, Path(folder.name))
+        # "mitsuba" plays pbrwarp's roulette, so the two run the same estimator
+        renderers["mitsuba"] = mitsuba_renderer(mi, spec, rr_depth=ROULETTE_FROM_BOUNCE)
+        renderers["mitsuba, rr_depth 5 (its default)"] = mitsuba_renderer(mi, spec)
         renderers["mitsuba, mi.cornell_box()"] = mitsuba_own_cornell(mi, args.size, args.spp)
     times = {(name, s): [] for name in renderers for s in args.segments}
     images = {}
@@ -228,8 +234,10 @@ def main(argv=None):
         lines.append(f"| {r['segments']} | {r['renderer']} | {r['seconds']:.3f} | {relative} | {mean} |")
     lines += ["", f"Cornell box (pbrwarp.meshes.cornell_box()), {args.size}x{args.size}, {args.spp} spp, every core; "
               f"medians of {args.repeats} rounds after a warm-up, the renderers timed in turn each round; 'relative' "
-              "is the median of the per-round ratios (lower is faster). 'mitsuba, mi.cornell_box()' is Mitsuba's "
-              "own Cornell box (other geometry, for scale)."]
+              "is the median of the per-round ratios (lower is faster). 'mitsuba' starts Russian roulette where "
+              f"pbrwarp does (rr_depth={ROULETTE_FROM_BOUNCE}: a path may end after its third surface), so both run the "
+              "same estimator; 'rr_depth 5' is Mitsuba's default (longer paths: more work, less noise). "
+              "'mitsuba, mi.cornell_box()' is Mitsuba's own Cornell box (other geometry, its defaults, for scale)."]
     if agreement is not None:
         lines.append(f"Agreement at {longest} segments: relative RMSE of 16x16 block means, pbrwarp against "
                      f"Mitsuba on the same scene: {agreement:.4f}.")
