@@ -56,6 +56,10 @@ MANIFEST_SUFFIX = ".manifest.jsonl"
 # Scenes and environments a worker process keeps loaded, the least recently used dropped first:
 # jobs arrive roughly in the order they were written, so a few cover a batch grouped by scene.
 KEPT_SCENES = 4
+# Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536, which also turns off glibc's
+# adaptive mmap threshold: every frame-sized buffer is then mapped afresh and page-faulted on first
+# touch, a quarter more time per 512² job (bench/results/batch.md). Local clusters start without it.
+WORKER_MALLOC_SETTING = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
 KEPT_ENVIRONMENTS = 4
 
 # job key -> the `pbrwarp render` option that takes its value
@@ -474,10 +478,13 @@ class _client:
             return client, None
         import logging
 
+        import dask
+
         workers = self._workers or 1
         # ":0": the scheduler's web server (the dashboard, with Bokeh) on a free port, clashing with no other
-        cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                           dashboard_address=":0", silence_logs=logging.ERROR)
+        with dask.config.set({WORKER_MALLOC_SETTING: None}):
+            cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                               dashboard_address=":0", silence_logs=logging.ERROR)
         self._opened.append(cluster)
         client = distributed.Client(cluster)
         self._opened.append(client)
