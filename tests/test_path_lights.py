@@ -272,9 +272,16 @@ def test_ray_sphere_against_float64_including_grazing_and_inside():
     origins = centre + unit_rows(rng.normal(size=(n, 3))) * rng.uniform(0.75, 50.0, (n, 1))
     targets = centre + unit_rows(rng.normal(size=(n, 3))) * radius * rng.uniform(0.0, 1.3, (n, 1))
     directions = unit_rows(targets - origins)
-    # exactly grazing: aimed at a point of the silhouette from far away
-    grazing = origins[:500] * 0 + centre + np.array([0.0, 0.0, 30.0])
-    tangent_dirs = unit_rows(centre + np.array([radius, 0.0, 0.0]) - grazing)
+    # exactly grazing: from 500 points at distances D, each along a tangent to the sphere (at the
+    # angle asin(r / D) from the centre's direction, about a random axis); its tangent point lies
+    # D cos(angle) away
+    distances = rng.uniform(1.5, 50.0, 500)
+    to_centre = unit_rows(rng.normal(size=(500, 3)))
+    grazing = centre - to_centre * distances[:, None]
+    across = unit_rows(np.cross(to_centre, rng.normal(size=(500, 3))))
+    sin_angle = radius / distances
+    cos_angle = np.sqrt(1.0 - sin_angle ** 2)
+    tangent_dirs = to_centre * cos_angle[:, None] + across * sin_angle[:, None]
     # inside and on the sphere: no hit
     inside = centre + unit_rows(rng.normal(size=(500, 3))) * radius * rng.uniform(0.0, 0.999, (500, 1))
     origins = np.concatenate([origins, grazing, inside])
@@ -285,6 +292,10 @@ def test_ray_sphere_against_float64_including_grazing_and_inside():
     expected, disc = sphere_reference(centre, radius, origins, directions)
     assert np.all(np.isfinite(t))
     assert np.all(t[-500:] == -1.0)
+    # a grazing ray that hits (rounding decides) hits at its tangent point
+    touched = t[n:n + 500] > 0
+    assert touched.sum() > 0, "no grazing ray hit: the check below would test nothing"
+    np.testing.assert_allclose(t[n:n + 500][touched], (distances * cos_angle)[touched], rtol=2e-3)
     # hit or miss agree except within float32 rounding of the silhouette
     near_edge = np.abs(disc) < 1e-4 * radius ** 2 * (1 + np.linalg.norm(origins - centre, axis=1)) ** 2 * 1e-2
     agree = (t > 0) == (expected > 0)
