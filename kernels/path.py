@@ -38,6 +38,7 @@ from .area_lights import area_light_kinds
 from .bsdf_sampling import pdf_brdf_direction, power_heuristic, sample_brdf_direction, specular_lobe_probability
 from .brdf import brdf_for, max_channel
 from .camera import CameraData, camera_ray_direction
+from .clearcoat import Coat, clearcoat_for
 from .emitters import LightTable, area_to_solid_angle, choose_light_or_environment, sample_triangle, triangle_area
 from .environment_sampling import pdf_environment, sample_environment
 from .ibl import EnvironmentData, environment_radiance
@@ -49,9 +50,10 @@ from .path_transmission import (MAX_PASSED, MIRRORED, NOT_LIGHT_SAMPLED, SCATTER
 from .random import sample_key, uniform, uniform2
 from .render import ROWS_TAKEN, STOP
 from .robust import FLOAT32_MAX, RAY_FAR, SHADOW_RAY_SHORTENING, clamp_to_float32_max, offset_ray_origin, safe_normalize
-from .scene_data import MaterialData, SceneData, triangle_corners
+from .scene_data import NO_TEXTURE, MaterialData, SceneData, triangle_corners
+from .sheen import Sheen, sheen_for
 from .surface import MAX_PASS_THROUGH, SurfaceHit, segment_to_point, shadow_segment, surface_hit, surface_tests
-from .texture_coords import texture_lookups
+from .texture_coords import SurfaceUV, texture_lookups
 from .transmission import beer_lambert, transmitted_share
 from .work_queue import read_counter, take_next_item_from
 
@@ -74,6 +76,17 @@ COVERAGE_DIMENSION = wp.constant(1 << 24)
 # Russian roulette starts at this bounce (0: the first surface), and keeps at most this share.
 ROULETTE_FROM_BOUNCE = wp.constant(3)
 MAX_SURVIVAL = wp.constant(0.95)
+# With a sheen, the cosine lobe (which samples it) keeps at least this share of the BRDF samples.
+MIN_COSINE_LOBE_WITH_SHEEN = wp.constant(0.1)
+
+
+@wp.struct
+class Layers:
+    """The layers over a surface's BRDF at a path vertex: its clear coat (weight 0: none) and its
+    sheen (colour 0: none), as kernels/clearcoat.py and kernels/sheen.py define them."""
+
+    coat: Coat
+    sheen: Sheen
 
 
 @functools.cache
@@ -108,6 +121,72 @@ def path_kernel(features):
     transmission_at = inputs.transmission_at
     if lobes:
         scatters, scatter = transmission_lobes(f.volume, bool(f.rough_transmission))
+    oriented_normal = inputs.oriented_normal
+    if f.clearcoat:
+        coat_at, _, clearcoat_brdf, _ = clearcoat_for(f.brdf.distribution, f.brdf.geometry, f.brdf.fresnel,
+                                                      texture if f.clearcoat_textures else None)
+    if f.sheen:
+        sheen_at, _, sheen_brdf, sheen_scaling, _, _ = sheen_for(texture if f.sheen_textures else None)
+
+    @wp.func
+    def layers_at(scene: SceneData, h: SurfaceHit, mat: MaterialData, uv: SurfaceUV, n: wp.vec3,
+                  v: wp.vec3) -> Layers:
+        """The clear coat and sheen of the material at the hit, seen from v (none where the kernel
+        has neither)."""
+        layers = Layers()
+        if wp.static(f.clearcoat):
+            coat_normal_map = NO_TEXTURE
+            if wp.static(f.clearcoat_textures):
+                coat_normal_map = mat.clearcoat_normal_texture
+            layers.coat = coat_at(scene, mat, uv, oriented_normal(scene, h, uv, coat_normal_map,
+                                                                  mat.clearcoat_normal_scale), v)
+        if wp.static(f.sheen):
+            layers.sheen = sheen_at(scene, mat, uv, n, v)
+        return layers
+
+    @wp.func
+    def reflected_cosine(n: wp.vec3, v: wp.vec3, l: wp.vec3, base: wp.vec3, metallic: float, roughness: float,
+                         specular: float, eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, aniso_t: wp.vec3,
+                         anisotropy: float, thin_film: wp.vec3, layers: Layers) -> wp.vec3:
+        """f(v, l) times the cosine, as the direct kernel combines the layers: the BRDF at n.l
+        under the sheen (KHR_materials_sheen's albedo scaling, plus its lobe) and under the clear
+        coat (times 1 - its weight), plus the coat's lobe at Nc.l (KHR_materials_clearcoat)."""
+        fr = brdf(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
+                  thin_film)
+        if wp.static(f.sheen):
+            fr = fr * sheen_scaling(layers.sheen, l) + sheen_brdf(layers.sheen, v, l)
+        fr = fr * wp.max(wp.dot(n, l), 0.0)
+        if wp.static(f.clearcoat):
+            coat = layers.coat
+            fr = fr * (1.0 - coat.weight) + wp.vec3(clearcoat_brdf(coat, v, l) * wp.max(wp.dot(coat.normal, l), 0.0))
+        return fr
+
+    @wp.func
+    def direction_pdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, alpha: float, p_specular: float, layers: Layers) -> float:
+        """The solid-angle pdf with which sample_direction draws l: the coat's lobe (GGX visible
+        normals about the coat's normal) with probability its weight, else the BRDF's mixture."""
+        pdf = pdf_brdf_direction(n, v, l, alpha, p_specular)
+        if wp.static(f.clearcoat):
+            p_coat = wp.clamp(layers.coat.weight, 0.0, 1.0)
+            if p_coat > 0.0:
+                coat_pdf = pdf_brdf_direction(layers.coat.normal, v, l, alpha_from_roughness(layers.coat.roughness),
+                                              1.0)
+                pdf = (1.0 - p_coat) * pdf + p_coat * coat_pdf
+        return pdf
+
+    @wp.func
+    def sample_direction(n: wp.vec3, v: wp.vec3, alpha: float, p_specular: float, layers: Layers, u_lobe: float,
+                         u: wp.vec2) -> wp.vec3:
+        """A direction from the lobes direction_pdf gives the density of; ``u_lobe`` chooses the
+        coat (below its weight) or, rescaled, the BRDF's lobe."""
+        choice = u_lobe
+        if wp.static(f.clearcoat):
+            p_coat = wp.clamp(layers.coat.weight, 0.0, 1.0)
+            if choice < p_coat:
+                return sample_brdf_direction(layers.coat.normal, v, alpha_from_roughness(layers.coat.roughness), 1.0,
+                                             0.0, u)
+            choice = (choice - p_coat) / wp.max(1.0 - p_coat, 1.0e-6)
+        return sample_brdf_direction(n, v, alpha, p_specular, choice, u)
 
     @wp.func
     def wall_share(scene: SceneData, h: SurfaceHit, mat: MaterialData, d: wp.vec3) -> wp.vec3:
@@ -253,23 +332,23 @@ def path_kernel(features):
     def light_sample(scene: SceneData, origin: wp.vec3, direction: wp.vec3, max_t: float, le: wp.vec3, pdf: float,
                      n: wp.vec3, v: wp.vec3, l: wp.vec3, base: wp.vec3, metallic: float, roughness: float,
                      specular: float, eta: wp.vec3, kappa: wp.vec3, f0_dielectric: wp.vec3, aniso_t: wp.vec3,
-                     anisotropy: float, thin_film: wp.vec3, alpha: float, p_specular: float) -> wp.vec3:
+                     anisotropy: float, thin_film: wp.vec3, alpha: float, p_specular: float, layers: Layers) -> wp.vec3:
         """The radiance reflected towards v of light ``le`` arriving along l, sampled with solid-angle
         ``pdf`` (choice included) by next-event estimation: passed through the shadow ray's
         segment (transmittance), MIS-weighted (power heuristic) against BSDF sampling."""
         passed = transmittance(scene, origin, direction, max_t, True)
         if max_channel(passed) <= 0.0:
             return wp.vec3(0.0)
-        fr = brdf(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy,
-                  thin_film)
-        weight = power_heuristic(pdf, pdf_brdf_direction(n, v, l, alpha, p_specular))
-        return wp.cw_mul(wp.cw_mul(fr, le), passed) * (wp.dot(n, l) * weight / pdf)
+        reflected = reflected_cosine(n, v, l, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t,
+                                     anisotropy, thin_film, layers)
+        weight = power_heuristic(pdf, direction_pdf(n, v, l, alpha, p_specular, layers))
+        return wp.cw_mul(wp.cw_mul(reflected, le), passed) * (weight / pdf)
 
     @wp.func
     def next_event(scene: SceneData, lights: LightTable, env: EnvironmentData, h: SurfaceHit, n: wp.vec3, v: wp.vec3, base: wp.vec3,
                    metallic: float, roughness: float, specular: float, eta: wp.vec3, kappa: wp.vec3,
                    f0_dielectric: wp.vec3, aniso_t: wp.vec3, anisotropy: float, thin_film: wp.vec3, alpha: float,
-                   p_specular: float, key: wp.uint32, dim: int) -> wp.vec3:
+                   p_specular: float, layers: Layers, key: wp.uint32, dim: int) -> wp.vec3:
         """Radiance reflected towards v of one light chosen from the table or the environment,
         divided by the probability of that choice (and, for all but punctual lights, by the
         sample's pdf, MIS-weighted against BSDF sampling); 0 where the light is below the surface
@@ -288,7 +367,7 @@ def path_kernel(features):
                     return wp.vec3(0.0)
                 return light_sample(scene, offset_ray_origin(h.p, h.p_error, h.ng, l), l, RAY_FAR, le, pdf, n, v, l,
                                     base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t,
-                                    anisotropy, thin_film, alpha, p_specular)
+                                    anisotropy, thin_film, alpha, p_specular, layers)
         if i < 0:
             return wp.vec3(0.0)
         if wp.static(punctual):
@@ -303,9 +382,9 @@ def path_kernel(features):
                 passed = transmittance(scene, origin, direction, max_t, True)
                 if max_channel(passed) <= 0.0:
                     return wp.vec3(0.0)
-                fr = brdf(n, v, ls.to_light, base, metallic, roughness, specular, eta, kappa, f0_dielectric, aniso_t,
-                          anisotropy, thin_film)
-                return wp.cw_mul(wp.cw_mul(fr, ls.irradiance), passed) * (wp.dot(n, ls.to_light) / pmf)
+                reflected = reflected_cosine(n, v, ls.to_light, base, metallic, roughness, specular, eta, kappa,
+                                             f0_dielectric, aniso_t, anisotropy, thin_film, layers)
+                return wp.cw_mul(wp.cw_mul(reflected, ls.irradiance), passed) * (1.0 / pmf)
         if wp.static(area):
             if i < lights.punctual + lights.area:
                 light = scene.area_lights[i - lights.punctual]
@@ -318,7 +397,7 @@ def path_kernel(features):
                 origin, direction, max_t = segment_to_point(h, h.p + l * distance, l)
                 return light_sample(scene, origin, direction, max_t, light.radiance, pdf, n, v, l, base, metallic,
                                     roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy, thin_film,
-                                    alpha, p_specular)
+                                    alpha, p_specular, layers)
         if wp.static(f.emission):
             face = lights.face[i - lights.punctual - lights.area]
             if face == h.face:
@@ -353,7 +432,7 @@ def path_kernel(features):
                 return wp.vec3(0.0)
             origin, direction, max_t = segment_to_point(h, target, l)
             return light_sample(scene, origin, direction, max_t, le, pdf, n, v, l, base, metallic, roughness, specular,
-                                eta, kappa, f0_dielectric, aniso_t, anisotropy, thin_film, alpha, p_specular)
+                                eta, kappa, f0_dielectric, aniso_t, anisotropy, thin_film, alpha, p_specular, layers)
         return wp.vec3(0.0)
 
     @wp.func
@@ -457,9 +536,14 @@ def path_kernel(features):
                         if mat.unlit != 0:  # KHR_materials_unlit: its base colour, and no bounce
                             radiance = radiance + wp.cw_mul(throughput, base_color_at(scene, h, mat, uv))
                             break
+                    layers = Layers()
+                    if wp.static(f.clearcoat or f.sheen):
+                        layers = layers_at(scene, h, mat, uv, n, -d)
                     if wp.static(f.emission):
                         if h.back_face == 0 or mat.double_sided == 1:
                             le = emission_at(scene, mat, uv)
+                            if wp.static(f.clearcoat):  # the coat passes 1 - its weight of the emission
+                                le = le * (1.0 - layers.coat.weight)
                             if max_channel(le) > 0.0:
                                 weight = float(1.0)
                                 if previous_pdf > 0.0:
@@ -499,6 +583,7 @@ def path_kernel(features):
                                     # the frame mirrored through the wall, sampled and lit below
                                     n, v, mirrored_ng, roughness = thin_lobe_frame(n, v, h.ng, roughness, mat.ior)
                                     h.ng = mirrored_ng
+                                    layers = Layers()  # the lobe is the wall's bare transmission
                                     base = wp.vec3(1.0)
                                     metallic = 1.0
                                     t = 0.0
@@ -516,21 +601,25 @@ def path_kernel(features):
                         thin_film = thin_film_at(scene, mat, uv)
                     alpha = alpha_from_roughness(roughness)
                     p_specular = lobe_probability(base, metallic, specular, f0_dielectric, wp.dot(n, v))
+                    if wp.static(f.sheen):  # the cosine lobe samples the sheen's
+                        if max_channel(layers.sheen.color) > 0.0:
+                            p_specular = wp.min(p_specular, 1.0 - MIN_COSINE_LOBE_WITH_SHEEN)
                     if not scattered:  # the reflecting BRDF: next-event estimation, then a direction from it
                         lit = next_event(scene, lights, env, h, n, v, base, metallic, roughness, specular,
                                          mat.ior_eta, mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film,
-                                         alpha, p_specular, key, dim)
+                                         alpha, p_specular, layers, key, dim)
                         radiance = radiance + wp.cw_mul(throughput, lit)
-                        l = sample_brdf_direction(n, v, alpha, p_specular, uniform(key, dim + LOBE_CHOICE),
-                                                  uniform2(key, dim + DIRECTION))
+                        l = sample_direction(n, v, alpha, p_specular, layers, uniform(key, dim + LOBE_CHOICE),
+                                             uniform2(key, dim + DIRECTION))
                         if wp.dot(h.ng, l) <= 0.0 or wp.dot(n, l) <= 0.0:
                             break  # below the surface: the BRDF is 0 there
-                        pdf = pdf_brdf_direction(n, v, l, alpha, p_specular)
+                        pdf = direction_pdf(n, v, l, alpha, p_specular, layers)
                         if pdf <= 0.0:
                             break
-                        fr = brdf(n, v, l, base, metallic, roughness, specular, mat.ior_eta, mat.ior_kappa,
-                                  f0_dielectric, aniso_t, anisotropy, thin_film)
-                        throughput = wp.cw_mul(throughput, fr) * (wp.dot(n, l) / pdf)
+                        reflected = reflected_cosine(n, v, l, base, metallic, roughness, specular, mat.ior_eta,
+                                                     mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film,
+                                                     layers)
+                        throughput = wp.cw_mul(throughput, reflected) * (1.0 / pdf)
                     strongest = max_channel(throughput)
                     if not (strongest > 0.0 and strongest < FLOAT32_MAX):
                         break  # nothing more to carry (or an overflow: dropped rather than Inf or NaN)

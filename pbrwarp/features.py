@@ -344,7 +344,7 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
     add("clearcoat", coated, f"clear coat (KHR_materials_clearcoat): {_count(coated, 'material')}" if coated
         else "no clear coat: every clearcoat factor is 0")
     sheened = sum(1 for m in lit_mats if max(m.sheen_color) > 0.0)
-    if sheened and not (scene.lights or environment):
+    if sheened and not (scene.lights or environment or (tracing_paths and emissive_materials(scene))):
         add("sheen", False, "no sheen: no lights")
     else:
         add("sheen", sheened, f"sheen (KHR_materials_sheen): {_count(sheened, 'material')}" if sheened
@@ -425,27 +425,6 @@ def decide(scene, gpu, *, shadows, spp: int, aovs: bool = True, brdf: BRDF = BRD
                      "simulated (integrator='path' does)")] + decisions
 
 
-# The effects of the direct kernel the path tracer does not simulate yet, by Features flag: what
-# each is called, and what the path tracer renders instead. The flags of their textures and
-# variants are dropped with them.
-PATH_UNSIMULATED = {
-    "clearcoat": ("clear coat (KHR_materials_clearcoat)", "its materials get their base glTF BRDF"),
-    "sheen": ("sheen (KHR_materials_sheen)", "its materials get their base glTF BRDF"),
-}
-_PATH_DROPPED = ("clearcoat_textures", "sheen_textures")
-
-
-def path_unsimulated(decisions: list[Decision], scene) -> list[str]:
-    """What the path tracer does not simulate yet of what ``decisions`` (the direct integrator's
-    for ``scene``) call for, each as "name (what is rendered instead)"."""
-    return [f"{PATH_UNSIMULATED[name][0]} ({PATH_UNSIMULATED[name][1]})" for name in _unsimulated(decisions, scene)]
-
-
-def _unsimulated(decisions: list[Decision], scene) -> list[str]:
-    """The PATH_UNSIMULATED flags ``scene`` calls for: those ``decisions`` hold."""
-    return [d.name for d in decisions if d.name in PATH_UNSIMULATED and d.present]
-
-
 def _listed(items: list[str]) -> str:
     """"a", "a and b", "a, b and c"."""
     return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} and {items[-1]}"
@@ -453,8 +432,7 @@ def _listed(items: list[str]) -> str:
 
 def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int) -> list[Decision]:
     """``decisions`` (the direct integrator's) turned into the path tracer's: what it traces
-    instead of the direct kernel's shadow and visibility techniques, and the extensions it does not
-    simulate yet, dropped (pbrwarp.render warns about them)."""
+    instead of the direct kernel's shadow and visibility techniques."""
     lights, areas, emitting = len(scene.punctual_lights), len(scene.area_lights), emissive_materials(scene)
     masked = sum(1 for p in scene.primitives if p.material.alpha_mode == "MASK")
     sources = []
@@ -515,17 +493,10 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
                     f"times between surfaces (paths of up to {max_bounces + 1} segments), the BRDF's lobes sampled "
                     "by a mixture of cosine and GGX visible normals, Russian roulette after three bounces; "
                     "emissive materials are lights")]
-    unsimulated = _unsimulated(decisions, scene)
     for d in decisions:
         if d.name in changed:
             present, why = changed[d.name]
             out.append(Decision(d.name, present, why))
-        elif d.name in unsimulated:
-            name, instead = PATH_UNSIMULATED[d.name]
-            out.append(Decision(d.name, False, f"{name} not simulated by the path tracer yet: {instead} "
-                                "(integrator='direct' renders it)"))
-        elif d.name in _PATH_DROPPED and d.present:
-            out.append(Decision(d.name, False, f"no {d.name.replace('_', ' ')}: not simulated by the path tracer yet"))
         else:
             out.append(d)
     return out
@@ -534,12 +505,10 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
 def path_features(f: Features) -> Features:
     """``f`` with what the path tracer ignores set to one value, so that renders differing only
     there share a kernel: visibility is ray cast, every pixel supersampled, shadows traced, the
-    environment's IBL rungs unused, occlusion textures and the effects it does not simulate
-    (PATH_UNSIMULATED) dropped."""
+    environment's IBL rungs unused, occlusion textures dropped (its paths find what occludes)."""
     return dataclasses.replace(
         f, integrator="path", visibility="raycast", supersampling=True, shadows="rays", occlusion_texture=False,
-        environment=IBL() if f.environment else False, clearcoat=False, clearcoat_textures=False, sheen=False,
-        sheen_textures=False, rough_transmission="sampled" if f.rough_transmission else False,
+        environment=IBL() if f.environment else False, rough_transmission="sampled" if f.rough_transmission else False,
         transmissive_shadows=False, area_lighting=False, area_shadows=False)
 
 

@@ -8,7 +8,6 @@ import functools
 import inspect
 import math
 import threading
-import warnings
 
 import numpy as np
 import warp as wp
@@ -18,7 +17,7 @@ from .brdf import BRDF, brdf_for_quality
 from .camera import Camera
 from .errors import InputError, InputTypeError
 from .emitters import light_table
-from .features import (DEFAULT_MAX_BOUNCES, MAX_BOUNCES, Features, check_integrator, decide, describe, path_features, path_unsimulated,
+from .features import (DEFAULT_MAX_BOUNCES, MAX_BOUNCES, Features, check_integrator, decide, describe, path_features,
                        scene_features)
 from .frame import Frame
 from .gpu_scene import back_face_culling, upload
@@ -233,7 +232,7 @@ def render(
     progressive = time_budget is not None or target_error is not None
     run = _renderer(scene, camera, width, height, spp, threads, shadows, background, seed, aovs, specialize, quality,
                     brdf, visibility, ibl, texture_filter, integrator, max_bounces, first_sample, area_lighting,
-                    progressive=progressive, stacklevel=3)
+                    progressive=progressive)
     if not progressive:
         return run(spp, first_sample, progress)
     return Accumulation(run, (width, height), spp, first_sample, progress).add(time_budget=time_budget,
@@ -263,22 +262,20 @@ class Accumulator(Accumulation):
     def __init__(self, scene: Scene, camera: Camera | None = None, width: int = 800, height: int = 600,
                  spp: int = 1, integrator: str = "path", first_sample: int = 0, progress: bool | None = None,
                  **options):
-        unknown = sorted(set(options) - (set(inspect.signature(_renderer).parameters) - {"progressive", "stacklevel"}))
+        unknown = sorted(set(options) - (set(inspect.signature(_renderer).parameters) - {"progressive"}))
         if unknown:
             raise InputTypeError(f"Accumulator got {', '.join(map(repr, unknown))}, which it does not take "
                                  "(render's options but time_budget and target_error, which are add's)")
         run = _renderer(scene, camera, width, height, spp, integrator=integrator, first_sample=first_sample,
-                        progressive=True, stacklevel=3, **options)
+                        progressive=True, **options)
         super().__init__(run, (width, height), spp, first_sample, progress)
 
 
 def _renderer(scene, camera, width, height, spp, threads=None, shadows=True, background=None, seed=0, aovs=True,
               specialize=True, quality=None, brdf=None, visibility="auto", ibl=None, texture_filter="trilinear",
-              integrator="direct", max_bounces=None, first_sample=0, area_lighting=None, progressive=False,
-              stacklevel=2):
-    """render's options (but ``progress``, ``time_budget`` and ``target_error``) checked, its
-    kernel's features decided and its warnings given (``stacklevel`` pointing at the caller's
-    caller): a function (spp, first_sample, progress) -> Frame rendering those samples. The path
+              integrator="direct", max_bounces=None, first_sample=0, area_lighting=None, progressive=False):
+    """render's options (but ``progress``, ``time_budget`` and ``target_error``) checked and its
+    kernel's features decided: a function (spp, first_sample, progress) -> Frame rendering those samples. The path
     tracer's renders any count from any first sample (checked by the caller); the direct
     integrator's the ``spp`` given only. ``progressive`` asks for the path tracer (InputError
     for the direct integrator, whose samples are stratified per render)."""
@@ -314,10 +311,6 @@ def _renderer(scene, camera, width, height, spp, threads=None, shadows=True, bac
         features = Features.everything(spp, aovs, brdf, shadows, ibl, features.environment_background, texture_filter,
                                        area_lighting)
     if path:
-        unsimulated = path_unsimulated(decide(scene, gpu, **{**options, "integrator": "direct"}), scene)
-        if unsimulated:
-            warnings.warn(f"the path tracer does not simulate {'; '.join(unsimulated)} yet; integrator='direct' "
-                          "renders them", stacklevel=stacklevel)
         return functools.partial(_render_path, scene, gpu, path_features(features), camera, width, height, seed,
                                  max_bounces, threads, background)
     return functools.partial(_render_direct, scene, gpu, features, camera, width, height, seed, threads, background,
