@@ -54,19 +54,21 @@ def test_passes_add_up_to_one_render_of_all_their_samples(box):
     assert one.variance is None and one.relative_error() is None  # a plain render: no estimate
 
 
-def test_the_variance_estimate_is_unbiased_on_a_pixel_of_known_variance():
+@pytest.mark.parametrize("pass_sizes", [(4,) * 6, (1, 2, 8, 3, 6, 4)], ids=["equal", "unequal"])
+def test_the_variance_estimate_is_unbiased_on_a_pixel_of_known_variance(pass_sizes):
     """The middle column's per-sample variance is 1/4, so that of its mean over N samples is
     1/(4N). The estimates of many pixels and seeds average to it within four standard errors of
-    their own spread; pixels the emitter covers or misses entirely have variance 0."""
+    their own spread, for equal and unequal passes; pixels the emitter covers or misses entirely
+    have variance 0."""
     scene, camera = half_emitter_scene()
-    passes, per_pass = 6, 4
-    samples = passes * per_pass
+    passes = len(pass_sizes)
+    samples = sum(pass_sizes)
     estimates, means = [], []
     for seed in range(12):
-        accumulator = pw.Accumulator(scene, camera, width=9, height=64, spp=per_pass, seed=seed, max_bounces=0,
+        accumulator = pw.Accumulator(scene, camera, width=9, height=64, spp=1, seed=seed, max_bounces=0,
                                      progress=False)
-        for _ in range(passes):
-            frame = accumulator.add()
+        for size in pass_sizes:
+            frame = accumulator.add(spp=size)
         estimates.append(frame.variance[:, 4, 0].astype(np.float64))
         means.append(frame.rgb[:, 4, 0].astype(np.float64))
         np.testing.assert_allclose(frame.variance[:, [0, 1, 2, 3, 5, 6, 7, 8]], 0.0, atol=1e-12)
