@@ -246,7 +246,7 @@ class Accumulator(Accumulation):
     :func:`render`'s options (``integrator`` defaults to "path", the only one that can be
     continued; ``first_sample`` is the index the first pass starts at, default 0; ``progress`` is
     that of :meth:`add`'s passes). ``spp`` is the samples per pixel of each pass. Options are
-    checked, the kernel chosen and warnings given once, here: InputError for integrator="direct",
+    checked and the kernel chosen once, here: InputError for integrator="direct",
     InputTypeError for ``time_budget`` or ``target_error`` (:meth:`add`'s) or an unknown option.
 
     :meth:`add` (``spp=None``, ``time_budget=None``, ``target_error=None``) renders passes and
