@@ -1,7 +1,7 @@
 """What accuracy costs in time: every rung of every approximation, measured against a converged
 path-traced ground truth for error and timed, side by side.
 
-    python bench/accuracy.py [--size 160x120] [--reference-spp 4096] [--repeats 3] [--out DIR]
+    python bench/accuracy.py [--size 160x120] [--reference-spp 16384] [--repeats 3] [--out DIR]
 
 The reference of each scene is pw.render(integrator="path", max_bounces=16, brdf=quality=reference)
 at --reference-spp samples per pixel, rendered once per run as two independent halves (seeds
@@ -14,8 +14,8 @@ errors (fireflies: OUTLIER_SHARE), mean over the scenes; and NVIDIA FLIP (flip-e
 tone-mapped (to_srgb8) images. Time: whole frames on every core (median of --repeats after a
 warm-up, summed over the scenes).
 Rows: BRDF rungs and presets (direct integrator, 4 spp), spp 1..64, shadows (off, shadow maps),
-integrators (direct; path at max_bounces 1, 2, 4, 8; path + pw.denoise against path at more
-samples), IBL rungs on an HDR-lit scene, texture filters on a grazing brick floor; all against the
+integrators (path at max_bounces 1, 2, 4, 8; path + pw.denoise against path at more samples;
+all with the reference BRDF, beside the direct integrator's quality=reference row), IBL rungs on an HDR-lit scene, texture filters on a grazing brick floor; all against the
 path-traced reference; rough transmission rungs on a glass slab before a brick wall, against its
 path reference over the glass's pixels. --only transmission re-runs only those rows (and their
 reference) and keeps the others from DIR/accuracy.json, saying so in the report.
@@ -187,7 +187,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog="accuracy.py", description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--size", default="160x120")
-    ap.add_argument("--reference-spp", type=int, default=4096)
+    ap.add_argument("--reference-spp", type=int, default=16384)
     ap.add_argument("--out", default=str(RESULTS))
     ap.add_argument("--only", choices=("transmission",), default=None,
                     help="re-run only these rows, keeping the others from DIR/accuracy.json")
@@ -241,15 +241,17 @@ def main(argv=None):
             return render(s, c, shadows=settings)
 
         row("shadows", label, fresh_maps)
-    # integrators: path at max_bounces 1..8, and denoised path against path at more samples
+    # integrators, all with the reference's BRDF (so that the rows differ from the reference in
+    # the integrator alone; quality=reference above is the direct integrator's row): path at
+    # max_bounces 1..8, and denoised path against path at more samples
     for bounces in (1, 2, 4, 8):
         row("integrator", f"path, max_bounces={bounces}, spp={ROW_SPP_PATH}",
-            direct(spp=ROW_SPP_PATH, integrator="path", max_bounces=bounces))
+            direct(spp=ROW_SPP_PATH, integrator="path", max_bounces=bounces, brdf=REFERENCE))
     for spp in (4, 16):
         row("integrator", f"path, spp={spp} + denoise",
-            lambda s, c, spp=spp: pw.denoise(render(s, c, spp=spp, integrator="path")))
+            lambda s, c, spp=spp: pw.denoise(render(s, c, spp=spp, integrator="path", brdf=REFERENCE)))
     for spp in (64, 256):
-        row("integrator", f"path, spp={spp}", direct(spp=spp, integrator="path"))
+        row("integrator", f"path, spp={spp}", direct(spp=spp, integrator="path", brdf=REFERENCE))
     own_scenes = {"ibl scene": ibl_rows(row, render, args.reference_spp),
                   "brick floor": texture_filter_rows(row, render, args.reference_spp)}
     own_scenes["glass"] = transmission_rows(row, render, args.reference_spp)
@@ -420,7 +422,7 @@ def report_markdown(payload) -> str:
                      + " | ".join(per_scene) + " |")
     noisy = [n for n in own if smallest[n] and own[n] > smallest[n] / 10]
     lines += ["", f"{width}x{height} frames on every core. Reference: integrator=\"path\", max_bounces={REFERENCE_BOUNCES}, "
-              f"quality=reference, {payload.get('reference_spp', 4096)} spp as two independent halves. Its own relMSE "
+              f"quality=reference, {payload['reference_spp']} spp as two independent halves. Its own relMSE "
               "(relMSE(half A, half B) / 4) per scene, and the fraction it is of the scene's smallest nonzero "
               "error: " + ", ".join(f"{n} {own[n]:.2g} ({_fraction(own[n], smallest[n])})" for n in own if own[n] > 0)
               + ("." if not noisy else f"; above the tenth the report needs in {', '.join(noisy)}: "
@@ -432,7 +434,9 @@ def report_markdown(payload) -> str:
               "over the scenes it covers (ms of the shadow-map rows include rasterizing the maps); ns / BRDF eval: a "
               "kernel of 1e7 evaluations of the row's BRDF on one thread, minus the cost of its random inputs. "
               "Direct-integrator rows' error includes what direct lighting misses (interreflection, the emissive "
-              "light of the Cornell box): see the figure below.",
+              "light of the Cornell box): see the figure below. The integrator rows (path) use the reference's BRDF, "
+              "so they differ from it in bounces and samples alone: the direct integrator at that BRDF is the row "
+              "quality=reference, spp=4.",
               "", "![error vs time](accuracy.png)", "",
               "What direct lighting misses, per scene: path reference, direct default, |difference| x4 (tone-mapped):",
               "", "![direct misses](accuracy_direct_misses.png)"]

@@ -1,5 +1,6 @@
-"""Lights as the path tracer samples them: one table over the punctual lights, the area lights and
-the emissive triangles, beside the environment; a light chosen by a discrete distribution, and a
+"""Lights as the path tracer samples them: one table over the area lights and the emissive
+triangles, beside the environment (punctual lights are not in it: next-event estimation visits
+every one of them at every vertex); a light chosen by a discrete distribution, and a
 point drawn uniformly on a chosen triangle, with the solid-angle pdf multiple importance sampling
 needs.
 
@@ -13,17 +14,16 @@ wp.set_module_options({"enable_backward": False})
 
 @wp.struct
 class LightTable:
-    # cumulative probabilities of the entries: the punctual lights (scene.lights, in order), the
-    # area lights (scene.area_lights, in order), then the emissive triangles; the last is exactly 1
+    # cumulative probabilities of the entries: the area lights (scene.area_lights, in order), then
+    # the emissive triangles; the last is exactly 1
     cdf: wp.array(dtype=float)
     pmf: wp.array(dtype=float)
-    # the triangle of each entry past the punctual and area lights
+    # the triangle of each entry past the area lights
     face: wp.array(dtype=wp.int32)
     # per triangle of the scene, the probability its entry is chosen (0 for triangles that emit
     # nothing): the light-sampling pdf of a point a BSDF-sampled ray hits
     face_pmf: wp.array(dtype=float)
     count: int
-    punctual: int
     area: int
     # the probability of choosing the environment rather than an entry (whose probabilities are
     # then scaled by 1 - environment): 0 where the environment lights nothing

@@ -5,9 +5,9 @@ Per camera sample, a path leaves the eye through a random point of the pixel. At
 reaches it adds
 - the surface's emission, weighted by the power heuristic against light sampling when a BSDF-
   sampled ray found it (full weight for the camera ray);
-- next-event estimation: one light chosen from the light table (kernels/emitters.py) by its
-  estimated power; a punctual light is a delta light (sampled only this way, no MIS), an emissive
-  triangle gets a point uniform on its area, a sphere or rectangle light a direction uniform in
+- next-event estimation: every punctual light (a delta light, sampled only this way, no MIS: a
+  shadow ray each, as in the direct kernel), and one light chosen from the light table
+  (kernels/emitters.py) by its estimated power: an emissive triangle gets a point uniform on its area, a sphere or rectangle light a direction uniform in
   the solid angle it subtends (kernels/area_lights.py), the environment a direction by its
   luminance (kernels/environment_sampling.py), each weighted against BSDF sampling;
 then continues along a direction drawn from the BRDF's lobe mixture (kernels/bsdf_sampling.py),
@@ -324,7 +324,7 @@ def path_kernel(features):
                 passed = wp.vec3(1.0)
                 if wp.static(f.transmission):
                     passed = transmittance(scene, origin, d, shortened, met)
-                light_pdf = lights.pmf[lights.punctual + k] * (1.0 - lights.environment) * pdf_area_light(light, p, d)
+                light_pdf = lights.pmf[k] * (1.0 - lights.environment) * pdf_area_light(light, p, d)
                 total = total + wp.cw_mul(light.radiance, passed) * power_heuristic(bsdf_pdf, light_pdf)
         return total
 
@@ -345,14 +345,34 @@ def path_kernel(features):
         return wp.cw_mul(wp.cw_mul(reflected, le), passed) * (weight / pdf)
 
     @wp.func
+    def punctual_lights_reflected(scene: SceneData, h: SurfaceHit, n: wp.vec3, v: wp.vec3, base: wp.vec3,
+                                  metallic: float, roughness: float, specular: float, eta: wp.vec3, kappa: wp.vec3,
+                                  f0_dielectric: wp.vec3, aniso_t: wp.vec3, anisotropy: float, thin_film: wp.vec3,
+                                  layers: Layers) -> wp.vec3:
+        """Radiance reflected towards v of every punctual light: each a shadow ray, none chosen by
+        chance (choosing among them by an estimate of their power adds the most noise where the
+        estimate misjudges what reaches the surface, a directional light's above all)."""
+        total = wp.vec3(0.0)
+        for i in range(scene.num_lights):
+            ls = sample_light(scene.lights[i], h.p)
+            # light below the geometric surface: shading normals must not leak it through
+            if wp.dot(h.ng, ls.to_light) > 0.0 and wp.dot(n, ls.to_light) > 0.0 and max_channel(ls.irradiance) > 0.0:
+                origin, direction, max_t = shadow_segment(scene, i, h, ls)
+                passed = transmittance(scene, origin, direction, max_t, True)
+                if max_channel(passed) > 0.0:
+                    reflected = reflected_cosine(n, v, ls.to_light, base, metallic, roughness, specular, eta, kappa,
+                                                 f0_dielectric, aniso_t, anisotropy, thin_film, layers)
+                    total = total + wp.cw_mul(wp.cw_mul(reflected, ls.irradiance), passed)
+        return total
+
+    @wp.func
     def next_event(scene: SceneData, lights: LightTable, env: EnvironmentData, h: SurfaceHit, n: wp.vec3, v: wp.vec3, base: wp.vec3,
                    metallic: float, roughness: float, specular: float, eta: wp.vec3, kappa: wp.vec3,
                    f0_dielectric: wp.vec3, aniso_t: wp.vec3, anisotropy: float, thin_film: wp.vec3, alpha: float,
                    p_specular: float, layers: Layers, key: wp.uint32, dim: int) -> wp.vec3:
         """Radiance reflected towards v of one light chosen from the table or the environment,
-        divided by the probability of that choice (and, for all but punctual lights, by the
-        sample's pdf, MIS-weighted against BSDF sampling); 0 where the light is below the surface
-        or blocked."""
+        divided by the probability of that choice and by the sample's pdf, MIS-weighted against
+        BSDF sampling; 0 where the light is below the surface or blocked."""
         i, pmf = choose_light_or_environment(lights, uniform(key, dim + LIGHT_CHOICE))
         if pmf <= 0.0:
             return wp.vec3(0.0)
@@ -370,24 +390,9 @@ def path_kernel(features):
                                     anisotropy, thin_film, alpha, p_specular, layers)
         if i < 0:
             return wp.vec3(0.0)
-        if wp.static(punctual):
-            if i < lights.punctual:
-                ls = sample_light(scene.lights[i], h.p)
-                # light below the geometric surface: shading normals must not leak it through
-                if wp.dot(h.ng, ls.to_light) <= 0.0 or wp.dot(n, ls.to_light) <= 0.0:
-                    return wp.vec3(0.0)
-                if max_channel(ls.irradiance) <= 0.0:
-                    return wp.vec3(0.0)
-                origin, direction, max_t = shadow_segment(scene, i, h, ls)
-                passed = transmittance(scene, origin, direction, max_t, True)
-                if max_channel(passed) <= 0.0:
-                    return wp.vec3(0.0)
-                reflected = reflected_cosine(n, v, ls.to_light, base, metallic, roughness, specular, eta, kappa,
-                                             f0_dielectric, aniso_t, anisotropy, thin_film, layers)
-                return wp.cw_mul(wp.cw_mul(reflected, ls.irradiance), passed) * (1.0 / pmf)
         if wp.static(area):
-            if i < lights.punctual + lights.area:
-                light = scene.area_lights[i - lights.punctual]
+            if i < lights.area:
+                light = scene.area_lights[i]
                 l, distance, light_pdf = sample_area_light(light, h.p, uniform2(key, dim + LIGHT_POINT))
                 pdf = pmf * light_pdf
                 if not (pdf > 0.0) or wp.dot(h.ng, l) <= 0.0 or wp.dot(n, l) <= 0.0:
@@ -399,7 +404,7 @@ def path_kernel(features):
                                     roughness, specular, eta, kappa, f0_dielectric, aniso_t, anisotropy, thin_film,
                                     alpha, p_specular, layers)
         if wp.static(f.emission):
-            face = lights.face[i - lights.punctual - lights.area]
+            face = lights.face[i - lights.area]
             if face == h.face:
                 return wp.vec3(0.0)  # a flat triangle does not light itself
             b = sample_triangle(uniform2(key, dim + LIGHT_POINT))
@@ -608,6 +613,10 @@ def path_kernel(features):
                         lit = next_event(scene, lights, env, h, n, v, base, metallic, roughness, specular,
                                          mat.ior_eta, mat.ior_kappa, f0_dielectric, aniso_t, anisotropy, thin_film,
                                          alpha, p_specular, layers, key, dim)
+                        if wp.static(punctual):
+                            lit = lit + punctual_lights_reflected(scene, h, n, v, base, metallic, roughness, specular,
+                                                                  mat.ior_eta, mat.ior_kappa, f0_dielectric, aniso_t,
+                                                                  anisotropy, thin_film, layers)
                         radiance = radiance + wp.cw_mul(throughput, lit)
                         l = sample_direction(n, v, alpha, p_specular, layers, uniform(key, dim + LOBE_CHOICE),
                                              uniform2(key, dim + DIRECTION))

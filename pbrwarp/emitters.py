@@ -1,6 +1,10 @@
-"""The path tracer's light table (kernels/emitters.py LightTable): every punctual light, every area
-light, every emissive triangle and the environment (where it lights the scene), each chosen for
-next-event estimation with a probability proportional to an estimate of the power it emits.
+"""The path tracer's light table (kernels/emitters.py LightTable): every area light, every emissive
+triangle and the environment (where it lights the scene), each chosen for next-event estimation
+with a probability proportional to an estimate of the power it emits. Punctual lights are not in
+it: next-event estimation visits every one of them at every vertex, as the direct kernel does (a
+shadow ray each). Chosen by power, a directional light is weighted by a guess at the power it
+sends through the scene, and where that guess is low against a point light's (a sun and a lamp),
+the light that dominates the image is drawn rarely and at a large weight: noise.
 
 Every triangle whose material emits (a non-zero emissive factor, not unlit) is a light. The
 estimates, in lumen-like units (luminance Y = 0.2126 R + 0.7152 G + 0.0722 B of the linear RGB):
@@ -8,10 +12,6 @@ estimates, in lumen-like units (luminance Y = 0.2126 R + 0.7152 G + 0.0722 B of 
 - an emissive triangle: pi Y(emissive) area, twice that for a double-sided material (a Lambertian
   emitter's power per side); the emissive texture is not read, so a textured emitter is chosen by
   its factor;
-- a point light: 4 pi Y(intensity); a spot light: that times the share of the sphere its outer
-  cone covers, (1 - cos outer) / 2;
-- a directional light: Y(illuminance) times the cross-section pi r^2 of the scene's bounding
-  sphere;
 - a sphere or rectangle light: its luminous power, pi Y(radiance) area (pbrwarp/lights.py);
 - the environment: the power it sends into the scene's bounding sphere, pi r^2 times the
   integral of its radiance over the sphere of directions, 4 pi^2 r^2 Y(mean radiance) (as a
@@ -35,7 +35,6 @@ import math
 import numpy as np
 import warp as wp
 
-from .lights import DIRECTIONAL, SPOT
 from pbrwarp.kernels.emitters import LightTable
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -62,7 +61,7 @@ def light_table(scene, gpu, environment_lights: bool = False) -> LightTable:
     built = scene.cache.get("emitters", _Same(gpu), lambda: _build(gpu))
     table = LightTable()
     table.cdf, table.pmf, table.face, table.face_pmf = built.arrays
-    table.count, table.punctual, table.area = built.count, built.punctual, built.area
+    table.count, table.area = built.count, built.area
     table.environment = 0.0
     if environment_lights and scene.environment is not None:
         environment = scene.environment
@@ -109,9 +108,9 @@ class _Built:
     """The table's arrays (cdf, pmf, face, face_pmf), its counts, its entries' total weight and the
     radius of the scene's bounding sphere the weights use."""
 
-    def __init__(self, arrays: tuple, count: int, punctual: int, area: int, total: float, radius: float):
+    def __init__(self, arrays: tuple, count: int, area: int, total: float, radius: float):
         self.arrays = arrays
-        self.count, self.punctual, self.area = count, punctual, area
+        self.count, self.area = count, area
         self.total, self.radius = total, radius
 
 
@@ -133,21 +132,6 @@ def bounding_radius(positions: np.ndarray) -> float:
     return 0.5 * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
 
 
-def punctual_weights(lights, radius: float) -> np.ndarray:
-    """Each punctual light's selection weight (see the module docstring), in float64; ``radius``
-    that of the scene's bounding sphere."""
-    weights = []
-    for light in lights:
-        y = float(np.asarray(light.color, dtype=np.float64) @ LUMINANCE) * light.intensity
-        if light.kind == DIRECTIONAL:
-            weights.append(y * math.pi * max(radius, 1e-30) ** 2)
-        elif light.kind == SPOT:
-            weights.append(4.0 * math.pi * y * 0.5 * (1.0 - math.cos(light.outer_cone)))
-        else:
-            weights.append(4.0 * math.pi * y)
-    return np.array(weights, dtype=np.float64)
-
-
 def area_weights(lights) -> np.ndarray:
     """Each area light's selection weight, pi Y(color) intensity area, in float64."""
     return np.array([float(np.asarray(light.color, dtype=np.float64) @ LUMINANCE) * light.power
@@ -165,8 +149,7 @@ def _build(gpu) -> _Built:
     faces = face_weights(positions, geometry.indices.numpy(), face_primitive, emissive, double_sided)
     emitting = np.flatnonzero(faces > 0.0).astype(np.int32)
     radius = bounding_radius(positions)
-    weights = np.concatenate([punctual_weights(gpu.punctual_lights, radius), area_weights(gpu.area_lights),
-                              faces[emitting]])
+    weights = np.concatenate([area_weights(gpu.area_lights), faces[emitting]])
     weights = np.where(np.isfinite(weights), weights, np.finfo(np.float32).max)
     total = weights.sum()
     count = len(weights) if total > 0.0 else 0
@@ -175,14 +158,13 @@ def _build(gpu) -> _Built:
     if count:
         cdf[-1] = 1.0  # rounding must leave no u in [0, 1) past the last entry
     face_pmf = np.zeros(max(len(face_primitive), 1), dtype=np.float32)
-    punctual, area = len(gpu.punctual_lights), len(gpu.area_lights)
+    area = len(gpu.area_lights)
     if count:
-        face_pmf[emitting] = pmf[punctual + area:]
+        face_pmf[emitting] = pmf[area:]
     arrays = (
         wp.array(cdf.astype(np.float32), dtype=float, device="cpu"),
         wp.array(pmf.astype(np.float32), dtype=float, device="cpu"),
         wp.array(emitting if len(emitting) else np.zeros(1, np.int32), dtype=wp.int32, device="cpu"),
         wp.array(face_pmf, dtype=float, device="cpu"),
     )
-    return _Built(arrays, count, punctual if count else 0, area if count else 0, float(total) if count else 0.0,
-                  radius)
+    return _Built(arrays, count, area if count else 0, float(total) if count else 0.0, radius)

@@ -436,8 +436,6 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
     lights, areas, emitting = len(scene.punctual_lights), len(scene.area_lights), emissive_materials(scene)
     masked = sum(1 for p in scene.primitives if p.material.alpha_mode == "MASK")
     sources = []
-    if lights:
-        sources.append(_count(lights, "punctual light"))
     if areas:
         sources.append(_count(areas, "area light"))
     if emitting:
@@ -450,11 +448,13 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
                                 "random numbers: the image does not depend on threads)"),
         "occlusion_texture": (False, "no occlusion textures read: the path tracer traces the occlusion they stand "
                                      "for"),
-        "shadows": ("rays", "next-event estimation at every path vertex: a shadow ray towards one light chosen by "
-                            f"power from {_listed(sources)} (punctual lights by light sampling alone, the others "
-                            "weighted against BSDF sampling by the power heuristic; BSDF-sampled rays see area "
-                            "lights, camera rays do not)")
-        if sources else (False, "no shadow rays: no lights and no emissive meshes to sample"),
+        "shadows": ("rays", "next-event estimation at every path vertex: "
+                            + "; ".join(([f"one shadow ray per punctual light ({_count(lights, 'punctual light')}: "
+                                          "delta lights, by light sampling alone)"] if lights else [])
+                                        + ([f"a shadow ray towards one light chosen by power from {_listed(sources)}, "
+                                            "weighted against BSDF sampling by the power heuristic (BSDF-sampled "
+                                            "rays see area lights, camera rays do not)"] if sources else [])))
+        if sources or lights else (False, "no shadow rays: no lights and no emissive meshes to sample"),
         "masked_occlusion": (bool(masked), f"shadow rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
                              else "no cut-outs in shadow rays: no alpha-masked material"),
     }

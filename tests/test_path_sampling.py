@@ -221,7 +221,7 @@ def table_of(weights):
     table.pmf = wp.array(pmf.astype(np.float32), dtype=float, device="cpu")
     table.face = wp.zeros(1, dtype=wp.int32, device="cpu")
     table.face_pmf = wp.zeros(1, dtype=float, device="cpu")
-    table.count, table.punctual = len(pmf), len(pmf)
+    table.count, table.area = len(pmf), len(pmf)
     return table, pmf
 
 
