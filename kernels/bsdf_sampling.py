@@ -97,6 +97,30 @@ def pdf_brdf_direction(n: wp.vec3, v: wp.vec3, l: wp.vec3, alpha: float, p_specu
 
 
 @wp.func
+def sample_coated_direction(n: wp.vec3, v: wp.vec3, alpha: float, p_specular: float, coat_normal: wp.vec3,
+                            coat_alpha: float, p_coat: float, u_lobe: float, u: wp.vec2) -> wp.vec3:
+    """A world direction from the three-lobe mixture of a clear-coated BRDF: with probability
+    p_coat (u_lobe below it) the coat's specular lobe about its own normal (GGX visible normals of
+    width coat_alpha), else, u_lobe rescaled, sample_brdf_direction's mixture about n. Its pdf is
+    pdf_coated_direction's."""
+    if u_lobe < p_coat:
+        return sample_brdf_direction(coat_normal, v, coat_alpha, 1.0, 0.0, u)
+    choice = (u_lobe - p_coat) / wp.max(1.0 - p_coat, 1.0e-6)
+    return sample_brdf_direction(n, v, alpha, p_specular, choice, u)
+
+
+@wp.func
+def pdf_coated_direction(n: wp.vec3, v: wp.vec3, l: wp.vec3, alpha: float, p_specular: float, coat_normal: wp.vec3,
+                         coat_alpha: float, p_coat: float) -> float:
+    """Solid-angle pdf with which sample_coated_direction draws l: p_coat p_coat_lobe(l) +
+    (1 - p_coat) pdf_brdf_direction(l) (one-sample MIS over the lobes, Veach 1997, 9.2.4)."""
+    pdf = pdf_brdf_direction(n, v, l, alpha, p_specular)
+    if p_coat > 0.0:
+        pdf = (1.0 - p_coat) * pdf + p_coat * pdf_brdf_direction(coat_normal, v, l, coat_alpha, 1.0)
+    return pdf
+
+
+@wp.func
 def power_heuristic(pdf_a: float, pdf_b: float) -> float:
     """Veach's power heuristic with exponent 2 (Veach 1997, eq. 9.13) for one sample of strategy a
     against one of b: pdf_a^2 / (pdf_a^2 + pdf_b^2), computed from the ratio so that neither

@@ -35,7 +35,8 @@ import warp as wp
 
 from .aovs import denoiser_albedo
 from .area_lights import area_light_kinds
-from .bsdf_sampling import pdf_brdf_direction, power_heuristic, sample_brdf_direction, specular_lobe_probability
+from .bsdf_sampling import (pdf_brdf_direction, pdf_coated_direction, power_heuristic, sample_brdf_direction,
+                            sample_coated_direction, specular_lobe_probability)
 from .brdf import brdf_for, max_channel
 from .camera import CameraData, camera_ray_direction
 from .clearcoat import Coat, clearcoat_for
@@ -165,28 +166,22 @@ def path_kernel(features):
     def direction_pdf(n: wp.vec3, v: wp.vec3, l: wp.vec3, alpha: float, p_specular: float, layers: Layers) -> float:
         """The solid-angle pdf with which sample_direction draws l: the coat's lobe (GGX visible
         normals about the coat's normal) with probability its weight, else the BRDF's mixture."""
-        pdf = pdf_brdf_direction(n, v, l, alpha, p_specular)
         if wp.static(f.clearcoat):
-            p_coat = wp.clamp(layers.coat.weight, 0.0, 1.0)
-            if p_coat > 0.0:
-                coat_pdf = pdf_brdf_direction(layers.coat.normal, v, l, alpha_from_roughness(layers.coat.roughness),
-                                              1.0)
-                pdf = (1.0 - p_coat) * pdf + p_coat * coat_pdf
-        return pdf
+            return pdf_coated_direction(n, v, l, alpha, p_specular, layers.coat.normal,
+                                        alpha_from_roughness(layers.coat.roughness),
+                                        wp.clamp(layers.coat.weight, 0.0, 1.0))
+        return pdf_brdf_direction(n, v, l, alpha, p_specular)
 
     @wp.func
     def sample_direction(n: wp.vec3, v: wp.vec3, alpha: float, p_specular: float, layers: Layers, u_lobe: float,
                          u: wp.vec2) -> wp.vec3:
         """A direction from the lobes direction_pdf gives the density of; ``u_lobe`` chooses the
         coat (below its weight) or, rescaled, the BRDF's lobe."""
-        choice = u_lobe
         if wp.static(f.clearcoat):
-            p_coat = wp.clamp(layers.coat.weight, 0.0, 1.0)
-            if choice < p_coat:
-                return sample_brdf_direction(layers.coat.normal, v, alpha_from_roughness(layers.coat.roughness), 1.0,
-                                             0.0, u)
-            choice = (choice - p_coat) / wp.max(1.0 - p_coat, 1.0e-6)
-        return sample_brdf_direction(n, v, alpha, p_specular, choice, u)
+            return sample_coated_direction(n, v, alpha, p_specular, layers.coat.normal,
+                                           alpha_from_roughness(layers.coat.roughness),
+                                           wp.clamp(layers.coat.weight, 0.0, 1.0), u_lobe, u)
+        return sample_brdf_direction(n, v, alpha, p_specular, u_lobe, u)
 
     @wp.func
     def wall_share(scene: SceneData, h: SurfaceHit, mat: MaterialData, d: wp.vec3) -> wp.vec3:

@@ -10,8 +10,8 @@ import pytest
 import warp as wp
 
 from pbrwarp.emitters import face_weights
-from pbrwarp.kernels.bsdf_sampling import (pdf_brdf_direction, power_heuristic, sample_brdf_direction,
-                                           specular_lobe_probability)
+from pbrwarp.kernels.bsdf_sampling import (pdf_brdf_direction, pdf_coated_direction, power_heuristic,
+                                           sample_brdf_direction, sample_coated_direction, specular_lobe_probability)
 from pbrwarp.kernels.emitters import LightTable, area_to_solid_angle, choose_light, sample_triangle
 from pbrwarp.kernels.random import sample_key, uniform
 
@@ -115,6 +115,74 @@ def test_lobe_mixture_samples_follow_their_pdf_which_integrates_to_one(theta_v, 
     # samples land in 12 x 12 (cos theta, phi) bins as often as the float64 pdf says
     fine, cell = sphere_grid(900)
     expected = mixture_pdf(fine, v, alpha, p_specular).reshape(12, 150, 12, 150).sum((1, 3)) * cell
+    counts = np.histogram2d(l[:, 2], np.arctan2(l[:, 1], l[:, 0]), bins=12, range=[[-1, 1], [-np.pi, np.pi]])[0]
+    ok, stat, quantile = chi_square_ok(counts.ravel(), expected.ravel() * count)
+    assert ok, (stat, quantile)
+
+
+@wp.kernel(enable_backward=False)
+def draw_coated_directions(v: wp.vec3, alpha: float, p_specular: float, coat_normal: wp.vec3, coat_alpha: float,
+                           p_coat: float, seed: int, out: wp.array(dtype=wp.vec3), pdf: wp.array(dtype=float)):
+    i = wp.tid()
+    key = sample_key(seed, i, 0)
+    n = wp.vec3(0.0, 0.0, 1.0)
+    l = sample_coated_direction(n, v, alpha, p_specular, coat_normal, coat_alpha, p_coat, uniform(key, 0),
+                                wp.vec2(uniform(key, 1), uniform(key, 2)))
+    out[i] = l
+    pdf[i] = pdf_coated_direction(n, v, l, alpha, p_specular, coat_normal, coat_alpha, p_coat)
+
+
+@wp.kernel(enable_backward=False)
+def evaluate_coated_pdf(v: wp.vec3, alpha: float, p_specular: float, coat_normal: wp.vec3, coat_alpha: float,
+                        p_coat: float, directions: wp.array(dtype=wp.vec3), pdf: wp.array(dtype=float)):
+    i = wp.tid()
+    pdf[i] = pdf_coated_direction(wp.vec3(0.0, 0.0, 1.0), v, directions[i], alpha, p_specular, coat_normal,
+                                  coat_alpha, p_coat)
+
+
+def in_frame_of(x, normal):
+    """Directions ``x`` (..., 3) in an orthonormal frame whose z axis is ``normal`` (the lobes are
+    isotropic about their normal, so any such frame does)."""
+    t = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+    t /= np.linalg.norm(t)
+    return np.stack([x @ t, x @ np.cross(normal, t), x @ normal], -1)
+
+
+def coated_pdf(l, v, alpha, p_specular, coat_normal, coat_alpha, p_coat):
+    """p_coat times the coat's GGX visible-normal reflection pdf about its own normal, plus
+    (1 - p_coat) times the base mixture about +z, float64."""
+    coat = mixture_pdf(in_frame_of(l, coat_normal), in_frame_of(v, coat_normal), coat_alpha, 1.0)
+    return (1 - p_coat) * mixture_pdf(l, v, alpha, p_specular) + p_coat * coat
+
+
+# theta_v, base roughness, P_s, coat roughness, coat weight, coat normal's tilt from n (radians)
+COATED_CASES = [(0.3, 0.8, 0.3, 0.4, 0.5, 0.0), (0.7, 0.6, 0.5, 0.5, 0.3, 0.35), (1.1, 1.0, 0.0, 0.4, 0.8, -0.25)]
+
+
+@pytest.mark.parametrize("theta_v, roughness, p_specular, coat_roughness, p_coat, tilt", COATED_CASES)
+def test_coated_lobe_mixture_samples_follow_their_pdf_which_integrates_to_one(theta_v, roughness, p_specular,
+                                                                               coat_roughness, p_coat, tilt):
+    """The path tracer's three-lobe sampler of a clear-coated surface (the coat's lobe about a
+    coat normal tilted from the base's, then the base's two), as the two-lobe test above."""
+    v = np.array([math.sin(theta_v), 0.0, math.cos(theta_v)])
+    coat_normal = np.array([math.sin(tilt), 0.0, math.cos(tilt)])
+    alpha, coat_alpha = roughness**2, coat_roughness**2
+    lobes = (alpha, p_specular, wp.vec3(*coat_normal), coat_alpha, p_coat)
+    count = 200_000
+    out = wp.zeros(count, dtype=wp.vec3, device="cpu")
+    pdf = wp.zeros(count, dtype=float, device="cpu")
+    wp.launch(draw_coated_directions, dim=count, device="cpu", inputs=[wp.vec3(*v), *lobes, 23, out, pdf])
+    l = out.numpy().astype(np.float64)
+    expected_pdf = coated_pdf(l, v, alpha, p_specular, coat_normal, coat_alpha, p_coat)
+    np.testing.assert_allclose(pdf.numpy(), expected_pdf, rtol=3e-3, atol=1e-6)
+    grid, cell = sphere_grid(600)
+    density = wp.zeros(grid.shape[0] * grid.shape[1], dtype=float, device="cpu")
+    wp.launch(evaluate_coated_pdf, dim=density.shape[0], device="cpu",
+              inputs=[wp.vec3(*v), *lobes, wp.array(grid.reshape(-1, 3), dtype=wp.vec3, device="cpu"), density])
+    assert abs(density.numpy().astype(np.float64).sum() * cell - 1.0) < 3e-3
+    fine, cell = sphere_grid(900)
+    expected = coated_pdf(fine, v, alpha, p_specular, coat_normal, coat_alpha, p_coat)
+    expected = expected.reshape(12, 150, 12, 150).sum((1, 3)) * cell
     counts = np.histogram2d(l[:, 2], np.arctan2(l[:, 1], l[:, 0]), bins=12, range=[[-1, 1], [-np.pi, np.pi]])[0]
     ok, stat, quantile = chi_square_ok(counts.ravel(), expected.ravel() * count)
     assert ok, (stat, quantile)
