@@ -20,7 +20,6 @@ time per image (scheduling, messages, the manifest). Writes bench/results/batch.
 from __future__ import annotations
 
 import argparse
-import logging
 import os
 import shutil
 import statistics
@@ -83,15 +82,12 @@ def main(argv=None):
     ap.add_argument("--model", default=None, help="scene file (default: the Stanford bunny)")
     ap.add_argument("--results", default=str(RESULTS), help="folder of batch.{md,json} (default bench/results)")
     args = ap.parse_args(argv)
-    import dask
     import distributed
 
     model = args.model or default_model()
     work = Path(tempfile.mkdtemp(prefix="pbrwarp-bench-batch-"))
     t0 = time.perf_counter()
-    with dask.config.set({batch.WORKER_MALLOC_SETTING: None}):  # as pw.render_batch starts its cluster
-        cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                           silence_logs=logging.ERROR)
+    cluster = batch.local_cluster(1)  # as pw.render_batch starts it
     client = distributed.Client(cluster)
     client.wait_for_workers(1)
     startup = time.perf_counter() - t0

@@ -60,6 +60,15 @@ KEPT_SCENES = 4
 # adaptive mmap threshold: every frame-sized buffer is then mapped afresh and page-faulted on first
 # touch, a quarter more time per 512² job (bench/results/batch.md). Local clusters start without it.
 WORKER_MALLOC_SETTING = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
+# The Dask settings of the local clusters pbrwarp starts (docs/batch.md "Cost"):
+LOCAL_CLUSTER_SETTINGS = {
+    WORKER_MALLOC_SETTING: None,
+    # the scheduler queues no job of its own but hands every one to a worker at once, so a worker
+    # starts its next job without waiting a round trip for it (work stealing still balances workers)
+    "distributed.scheduler.worker-saturation": float("inf"),
+    # no statistical profiler: its thread takes the GIL every 10 ms, from a render's Python parts too
+    "distributed.worker.profile.enabled": False,
+}
 KEPT_ENVIRONMENTS = 4
 
 # job key -> the `pbrwarp render` option that takes its value
@@ -460,6 +469,20 @@ def _finish(record: dict, out, bar) -> None:
         bar.update(1)
 
 
+def local_cluster(workers: int):
+    """A dask.distributed.LocalCluster of ``workers`` worker processes of one Dask thread each, with
+    LOCAL_CLUSTER_SETTINGS, its dashboard on a free port."""
+    import logging
+
+    import dask
+
+    distributed = _distributed()
+    with dask.config.set(LOCAL_CLUSTER_SETTINGS):
+        # ":0": the scheduler's web server (the dashboard, with Bokeh) on a free port, clashing with no other
+        return distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                        dashboard_address=":0", silence_logs=logging.ERROR)
+
+
 class _client:
     """A context giving (client, render threads per job) for ``client`` (a Client, an address, or
     None for a local cluster of ``workers`` processes), closing what it opened."""
@@ -476,15 +499,8 @@ class _client:
             client = distributed.Client(self._given)
             self._opened.append(client)
             return client, None
-        import logging
-
-        import dask
-
         workers = self._workers or 1
-        # ":0": the scheduler's web server (the dashboard, with Bokeh) on a free port, clashing with no other
-        with dask.config.set({WORKER_MALLOC_SETTING: None}):
-            cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                               dashboard_address=":0", silence_logs=logging.ERROR)
+        cluster = local_cluster(workers)
         self._opened.append(cluster)
         client = distributed.Client(cluster)
         self._opened.append(client)
