@@ -124,7 +124,7 @@ def main(argv=None):
         "batch s/image outside jobs | cluster start-up s |\n|---|---|---|---|---|---|---|---|---|---|\n"
         f"| {row['model']} | {row['views']} | {row['size']}² | {row['spp']} | {row['loop_s_per_image']:.3f} | "
         f"{row['batch_s_per_image']:.3f} | {100 * row['overhead']:+.1f}% | {row['job_s_in_worker']:.3f} | "
-        f"{row['batch_s_per_image_outside_jobs']:.3f} | {row['cluster_startup_s']:.1f} |\n\n"
+        f"{row['batch_s_per_image_outside_jobs']:.4f} | {row['cluster_startup_s']:.1f} |\n\n"
         "Seconds per image: medians over the rounds of each side's wall time / views, the loop and the batch "
         "timed in turn each round after a warm-up round. The batch runs on a LocalCluster of one worker "
         "process (one job at a time, every core rendering) started once, outside the timings (its start-up "

@@ -434,9 +434,10 @@ def render_batch(jobs, client=None, manifest=None, *, workers: int | None = None
                 _finish(record, out, bar)
         if todo:
             with _client(distributed, client, workers) as (dask_client, threads):
-                futures = {dask_client.submit(run_job, parsed[i], threads, pure=False,
-                                              key=f"pbrwarp-{parsed[i].id}-{os.urandom(6).hex()}"): i
-                           for i in todo}
+                # one message for every job: submitting them one by one costs a round trip each
+                keys = [f"pbrwarp-{parsed[i].id}-{os.urandom(6).hex()}" for i in todo]
+                submitted = dask_client.map(run_job, [parsed[i] for i in todo], threads=threads, pure=False, key=keys)
+                futures = dict(zip(submitted, todo))
                 for future in distributed.as_completed(futures):
                     index = futures.pop(future)
                     records[index] = _result(future, parsed[index])
