@@ -63,9 +63,12 @@ WORKER_MALLOC_SETTING = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHO
 # The Dask settings of the local clusters pbrwarp starts (docs/batch.md "Cost"):
 LOCAL_CLUSTER_SETTINGS = {
     WORKER_MALLOC_SETTING: None,
-    # the scheduler queues no job of its own but hands every one to a worker at once, so a worker
-    # starts its next job without waiting a round trip for it (work stealing still balances workers)
-    "distributed.scheduler.worker-saturation": float("inf"),
+    # a worker holds one job at a time, the one it renders: when a job kills its worker, Dask
+    # counts the death against every job the worker held, and after allowed-failures + 1 deaths
+    # fails them all; held one at a time, only the job that kills is an "error" (Dask's default,
+    # 1.1, holds two per single-threaded worker; more would spare the next job's round trip
+    # through the scheduler, bench/results/batch.md)
+    "distributed.scheduler.worker-saturation": 1.0,
     # no statistical profiler: its thread takes the GIL every 10 ms, from a render's Python parts too
     "distributed.worker.profile.enabled": False,
 }

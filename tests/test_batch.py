@@ -210,6 +210,80 @@ def test_a_worker_killed_mid_batch_loses_no_image(client, tmp_path, moment):
     assert all(batch.finished(batch.parse_job(job, str(tmp_path))) for job in jobs)
 
 
+class _KillAlways(distributed.WorkerPlugin):
+    """Kills (SIGKILL) every worker process as it starts the job ``victim``: a job that crashes
+    whatever runs it (a segfault, the kernel's OOM killer)."""
+
+    def __init__(self, victim):
+        self.victim = victim
+
+    def transition(self, key, start, finish, **kwargs):
+        if finish == "executing" and str(key).startswith(f"pbrwarp-{self.victim}-"):
+            os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_a_job_that_kills_every_worker_is_an_error_and_the_others_are_ok(tmp_path):
+    """On the local cluster render_batch starts (two workers; after one retry here, where the
+    default allows three), the job that kills its worker is an "error" record, and only it: a
+    worker holds no queued job that its death would count against."""
+    import cloudpickle
+    import dask
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers cannot import this file
+    names = ["view0", "doomed", "view1", "view2", "view3", "view4"]
+    jobs_path, _ = _jobs(tmp_path, names)
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        cluster = batch.local_cluster(2)
+    with cluster, distributed.Client(cluster) as dask_client:
+        dask_client.wait_for_workers(2, timeout=LIMIT)
+        dask_client.register_plugin(_KillAlways("doomed"), name="kill-always")
+        records = _within(LIMIT, pw.render_batch, jobs_path, client=dask_client, progress=False)
+    assert [(r["id"], r["status"]) for r in records] == [(n, "error" if n == "doomed" else "ok") for n in names]
+    assert "every worker that rendered it died" in records[1]["error"]
+    assert [line["id"] for line in _manifest(tmp_path / "jobs.manifest.jsonl")].count("doomed") == 1
+
+
+def _count_scene_loads():
+    """In a worker: make pw.Scene.load count its calls in pbrwarp.scene.loads_counted."""
+    from pbrwarp import scene as scene_module
+
+    scene_module.loads_counted = 0
+    load = scene_module.Scene.__dict__["load"].__func__
+
+    def counted(cls, *args, **kwargs):
+        scene_module.loads_counted += 1
+        return load(cls, *args, **kwargs)
+
+    scene_module.Scene.original_load = scene_module.Scene.__dict__["load"]
+    scene_module.Scene.load = classmethod(counted)
+
+
+def _scene_loads_counted():
+    """In a worker: the count _count_scene_loads kept, its Scene.load restored."""
+    from pbrwarp import scene as scene_module
+
+    scene_module.Scene.load = scene_module.Scene.__dict__["original_load"]
+    del scene_module.Scene.original_load
+    return scene_module.loads_counted
+
+
+def test_each_worker_of_a_cluster_loads_a_scene_once_for_all_its_jobs(client, tmp_path):
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers cannot import this file
+    client.wait_for_workers(2, timeout=LIMIT)  # a killed worker restarted
+    names = [f"view{i}" for i in range(8)]
+    jobs_path, _ = _jobs(tmp_path, names)
+    client.run(_count_scene_loads)
+    try:
+        records = _within(LIMIT, pw.render_batch, jobs_path, client=client, progress=False)
+    finally:
+        loads = client.run(_scene_loads_counted)
+    assert all(r["status"] == "ok" for r in records)
+    workers = {r["worker"] for r in records}
+    assert {address: count for address, count in loads.items() if count} == dict.fromkeys(workers, 1)
+
+
 def test_a_worker_keeps_each_scene_loaded_until_its_file_changes(tmp_path):
     shutil.copy(SAMPLES / BUNNY, tmp_path / BUNNY)
     path = str(tmp_path / BUNNY)
