@@ -7,9 +7,10 @@ reaches it adds
   sampled ray found it (full weight for the camera ray);
 - next-event estimation: every punctual light (a delta light, sampled only this way, no MIS: a
   shadow ray each, as in the direct kernel), and one light chosen from the light table
-  (kernels/emitters.py) by its estimated power: an emissive triangle gets a point uniform on its area, a sphere or rectangle light a direction uniform in
-  the solid angle it subtends (kernels/area_lights.py), the environment a direction by its
-  luminance (kernels/environment_sampling.py), each weighted against BSDF sampling;
+  (kernels/emitters.py) by its estimated power: an emissive triangle gets a point uniform on its
+  area, a sphere or rectangle light a direction uniform in the solid angle it subtends
+  (kernels/area_lights.py), the environment a direction by its luminance
+  (kernels/environment_sampling.py), each weighted against BSDF sampling;
 then continues along a direction drawn from the BRDF's lobe mixture (kernels/bsdf_sampling.py),
 its throughput multiplied by f cos / pdf. That ray adds the radiance of every sphere and
 rectangle light it meets before the surface it reaches (area lights are not in the mesh and, as

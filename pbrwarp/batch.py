@@ -56,6 +56,7 @@ MANIFEST_SUFFIX = ".manifest.jsonl"
 # Scenes and environments a worker process keeps loaded, the least recently used dropped first:
 # jobs arrive roughly in the order they were written, so a few cover a batch grouped by scene.
 KEPT_SCENES = 4
+KEPT_ENVIRONMENTS = 4
 # Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536, which also turns off glibc's
 # adaptive mmap threshold: every frame-sized buffer is then mapped afresh and page-faulted on first
 # touch, a quarter more time per 512² job (bench/results/batch.md). Local clusters start without it.
@@ -72,7 +73,6 @@ LOCAL_CLUSTER_SETTINGS = {
     # no statistical profiler: its thread takes the GIL every 10 ms, from a render's Python parts too
     "distributed.worker.profile.enabled": False,
 }
-KEPT_ENVIRONMENTS = 4
 
 # job key -> the `pbrwarp render` option that takes its value
 _OPTION_FLAGS = {

@@ -442,19 +442,22 @@ def path_decisions(decisions: list[Decision], scene, spp: int, max_bounces: int)
         sources.append(f"the triangles of {_count(emitting, 'emissive mesh')}")
     if scene.environment is not None and any(d.name == "environment" and d.present for d in decisions):
         sources.append("the environment")
+    shadow_rays = []
+    if lights:
+        shadow_rays.append(f"one shadow ray per punctual light ({_count(lights, 'punctual light')}: delta lights, by "
+                           "light sampling alone)")
+    if sources:
+        shadow_rays.append(f"a shadow ray towards one light chosen by power from {_listed(sources)}, weighted against "
+                           "BSDF sampling by the power heuristic (BSDF-sampled rays see area lights, camera rays do "
+                           "not)")
     changed = {
         "visibility": ("raycast", "primary visibility ray cast: each camera ray starts a path"),
         "supersampling": (True, f"{_count(spp, 'path')} per pixel through random points of it (counter-based "
                                 "random numbers: the image does not depend on threads)"),
         "occlusion_texture": (False, "no occlusion textures read: the path tracer traces the occlusion they stand "
                                      "for"),
-        "shadows": ("rays", "next-event estimation at every path vertex: "
-                            + "; ".join(([f"one shadow ray per punctual light ({_count(lights, 'punctual light')}: "
-                                          "delta lights, by light sampling alone)"] if lights else [])
-                                        + ([f"a shadow ray towards one light chosen by power from {_listed(sources)}, "
-                                            "weighted against BSDF sampling by the power heuristic (BSDF-sampled "
-                                            "rays see area lights, camera rays do not)"] if sources else [])))
-        if sources or lights else (False, "no shadow rays: no lights and no emissive meshes to sample"),
+        "shadows": ("rays", "next-event estimation at every path vertex: " + "; ".join(shadow_rays))
+        if shadow_rays else (False, "no shadow rays: no lights and no emissive meshes to sample"),
         "masked_occlusion": (bool(masked), f"shadow rays pass alpha cut-outs ({_count(masked, 'material')})" if masked
                              else "no cut-outs in shadow rays: no alpha-masked material"),
     }
