@@ -70,7 +70,10 @@ def report_scenes():
     grazing.add_mesh(trimesh.creation.box(extents=(40.0, 0.1, 40.0)), pw.Material(base_color=(0.3, 0.3, 0.35), roughness=0.25))
     grazing.add_light(pw.DirectionalLight(direction=(0.0, -0.2, 1.0), intensity=5.0))
     grazing.add_light(pw.PointLight(position=(3.0, 1.0, -8.0), intensity=60.0))
-    textured_path = meshes.ASSETS / "gltf/NormalTangentTest/glTF-Binary/NormalTangentTest.glb"
+    # WaterBottle, not NormalTangentTest: that model's mirror cells (roughness ~0) reflect the punctual
+    # lights as glints, a delta light on a near-delta lobe, whose pixel integral no feasible number of
+    # samples converges (the reference's own relMSE did not fall from 4096 to 16384 spp; docs/accuracy.md)
+    textured_path = meshes.ASSETS / "gltf/WaterBottle/glTF/WaterBottle.gltf"
     if textured_path.exists():
         textured = pw.Scene.load(textured_path)
     else:
