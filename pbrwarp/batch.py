@@ -438,7 +438,8 @@ def render_batch(jobs, client=None, manifest=None, *, workers: int | None = None
         if todo:
             with _client(distributed, client, workers) as (dask_client, threads):
                 # one message for every job: submitting them one by one costs a round trip each
-                keys = [f"pbrwarp-{parsed[i].id}-{os.urandom(6).hex()}" for i in todo]
+                batch_tag = os.urandom(6).hex()
+                keys = [job_key(index, parsed[index].id, batch_tag) for index in todo]
                 submitted = dask_client.map(run_job, [parsed[i] for i in todo], threads=threads, pure=False, key=keys)
                 futures = dict(zip(submitted, todo))
                 for future in distributed.as_completed(futures):
@@ -451,6 +452,15 @@ def render_batch(jobs, client=None, manifest=None, *, workers: int | None = None
         if out is not None:
             out.close()
     return records
+
+
+def job_key(index: int, job_id: str, batch_tag: str) -> str:
+    """The Dask key of the job at ``index`` of a batch: "pbrwarp-render-INDEX-ID-TAG". Dask groups
+    tasks by the key up to its first word that is not all letters (dask.utils.key_split), and queues
+    on the scheduler only a group larger than twice the cluster's threads: the index keeps every
+    job of a batch in the one group "pbrwarp-render" whatever its id (an id such as "front" would
+    otherwise make a group of its own, sent to a worker at once beside the job it renders)."""
+    return f"pbrwarp-render-{index}-{job_id}-{batch_tag}"
 
 
 def _result(future, job: Job) -> dict:

@@ -7,7 +7,9 @@ import json
 import os
 import shutil
 import signal
+import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -173,7 +175,7 @@ class _KillOnce(distributed.WorkerPlugin):
         self.address = worker.address
 
     def transition(self, key, start, finish, **kwargs):
-        if finish != self.moment or not str(key).startswith(f"pbrwarp-{self.victim}-"):
+        if finish != self.moment or not f"-{self.victim}-" in str(key):
             return
         try:
             fd = os.open(self.marker, os.O_WRONLY | os.O_CREAT | os.O_EXCL)
@@ -218,19 +220,20 @@ class _KillAlways(distributed.WorkerPlugin):
         self.victim = victim
 
     def transition(self, key, start, finish, **kwargs):
-        if finish == "executing" and str(key).startswith(f"pbrwarp-{self.victim}-"):
+        if finish == "executing" and f"-{self.victim}-" in str(key):
             os.kill(os.getpid(), signal.SIGKILL)
 
 
 def test_a_job_that_kills_every_worker_is_an_error_and_the_others_are_ok(tmp_path):
     """On the local cluster render_batch starts (two workers; after one retry here, where the
     default allows three), the job that kills its worker is an "error" record, and only it: a
-    worker holds no queued job that its death would count against."""
+    worker holds no queued job that its death would count against. The ids are words, each of
+    which Dask would take for a task group of its own were it the key's prefix."""
     import cloudpickle
     import dask
 
     cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers cannot import this file
-    names = ["view0", "doomed", "view1", "view2", "view3", "view4"]
+    names = ["front", "doomed", "back", "left", "right", "top"]
     jobs_path, _ = _jobs(tmp_path, names)
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
         cluster = batch.local_cluster(2)
@@ -241,6 +244,63 @@ def test_a_job_that_kills_every_worker_is_an_error_and_the_others_are_ok(tmp_pat
     assert [(r["id"], r["status"]) for r in records] == [(n, "error" if n == "doomed" else "ok") for n in names]
     assert "every worker that rendered it died" in records[1]["error"]
     assert [line["id"] for line in _manifest(tmp_path / "jobs.manifest.jsonl")].count("doomed") == 1
+
+
+@pytest.mark.parametrize("job_id", ["front", "view_3", "2", "deadbeef", "a-b", "x y", "Änderung"])
+def test_every_job_of_a_batch_is_in_one_dask_task_group(job_id):
+    """Dask queues only a task group larger than twice the cluster's threads, a group being the
+    key as dask.utils.key_split reads it: whatever its id, a job is in the batch's group."""
+    from dask.utils import key_split
+
+    assert key_split(batch.job_key(7, job_id, "0a1b2c3d4e5f")) == key_split(batch.job_key(0, "view0", "ffffffffffff"))
+
+
+def _session_processes(session: int) -> list[int]:
+    """The ids of the live processes of ``session`` (Linux's /proc; zombies count as ended)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        try:
+            with open(f"/proc/{entry}/stat") as stat:
+                fields = stat.read().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):  # not a process, or one that ended meanwhile
+            continue
+        if fields[0] != "Z" and int(fields[3]) == session:
+            found.append(int(entry))
+    return found
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/stat"), reason="counts processes through Linux's /proc")
+def test_ctrl_c_during_a_batch_ends_every_process_and_leaves_only_whole_files(tmp_path):
+    """``pbrwarp batch`` on its own local cluster, its whole process group sent SIGINT (as a
+    terminal's Ctrl-C) once a job is in the manifest: it says "interrupted" and exits 130, every
+    process it started ends, each manifest line is a whole record, each output there is a whole
+    image."""
+    names = [f"view{i}" for i in range(16)]
+    jobs_path, small = _jobs(tmp_path, names)
+    jobs = [{**job, "width": 256, "height": 256, "spp": 8} for job in small]  # long enough to interrupt
+    jobs_path.write_text("".join(json.dumps(job) + "\n" for job in jobs))
+    manifest = tmp_path / "jobs.manifest.jsonl"
+    process = subprocess.Popen([sys.executable, "-m", "pbrwarp", "batch", str(jobs_path)],
+                               start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + LIMIT
+        while not (manifest.exists() and manifest.read_text().count("\n") >= 1):
+            assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+            time.sleep(0.01)
+        os.killpg(process.pid, signal.SIGINT)
+        _, err = process.communicate(timeout=LIMIT)
+        while _session_processes(process.pid) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert _session_processes(process.pid) == [], "processes of the batch outlived it"
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    assert process.returncode == 130 and err.strip().endswith("pbrwarp: interrupted"), err
+    done = _manifest(manifest)
+    assert 1 <= len(done) < len(names) and all(line["status"] == "ok" for line in done)
+    written = [job for job in jobs if (tmp_path / job["output"]).exists()]
+    assert all(batch.finished(batch.parse_job(job, str(tmp_path))) for job in written)
 
 
 def _count_scene_loads():
