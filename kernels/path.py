@@ -113,7 +113,7 @@ def path_kernel(features):
     scattering = f.diffuse or f.specular or lobes
     hit_uv, alpha_at, is_cut_out, _, occluded = surface_tests(textured, f.base_color_texture, f.masked_occlusion,
                                                               f.second_uv_set)
-    # textures are filtered over one pixel's footprint where the camera ray meets its first
+    # textures are filtered over a sample's footprint where the camera ray meets its first
     # surface, at full resolution after a bounce
     footprint = textured and f.texture_filter == "trilinear"
     hit_texcoords, texture = texture_lookups(textured, footprint, f.second_uv_set)
@@ -454,6 +454,9 @@ def path_kernel(features):
                    env: EnvironmentData, lights: LightTable, rows: wp.array(dtype=wp.int32)):
         """Row py of the image, path by path, unless rows[STOP] is set: then the row is left at the
         next pixel."""
+        # a sample's footprint: the side of one of spp strata of the pixel, as in the direct
+        # kernel (a whole pixel would blur textures by a pixel more than the samples' average does)
+        step = 1.0 / wp.sqrt(float(spp))
         for px in range(cam.width):
             if read_counter(rows, STOP) != 0:
                 return
@@ -472,8 +475,8 @@ def path_kernel(features):
                 dir_dx = d
                 dir_dy = d
                 if wp.static(footprint):
-                    dir_dx = camera_ray_direction(cam, x + 1.0, y)
-                    dir_dy = camera_ray_direction(cam, x, y + 1.0)
+                    dir_dx = camera_ray_direction(cam, x + step, y)
+                    dir_dy = camera_ray_direction(cam, x, y + step)
                 origin = cam.eye
                 throughput = wp.vec3(1.0)
                 # the pdf of the BSDF sample that led here (0 for the camera ray: emission seen

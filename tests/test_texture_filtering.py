@@ -34,6 +34,29 @@ def test_footprint_of_a_surface_seen_through_a_culled_one(visibility):
     head_on_plane_check(2 ** 1.6, visibility, blocker=True)
 
 
+@pytest.mark.parametrize("integrator", ["direct", "path"])
+def test_a_sample_reads_textures_over_its_stratum_of_the_pixel(integrator):
+    """With spp samples a sample's footprint is one stratum, 1/sqrt(spp) of a pixel a side: at 2
+    texels per pixel, from 16 spp on (half a texel) trilinear lookups read level 0, exactly what
+    the bilinear rung reads at the same samples; at 1 spp the footprint is two texels (level 1)."""
+    n, side, height, width, distance = 256, 2.0, 24, 32, 3.0
+    half_height = side / n * 2.0 * height / 2  # 2 texels to a pixel
+    scene = pw.Scene()
+    scene.add_mesh(quad(size=side, material=pw.Material(base_color_texture=random_texture(n))))
+    scene.add_light(pw.DirectionalLight(direction=(0.0, 0.0, -1.0), intensity=3.0))
+    cam = pw.Camera.look_at(eye=(0.1, -0.05, distance), target=(0.1, -0.05, 0.0),
+                            fov_y=2 * np.degrees(np.arctan(half_height / distance)))
+    for spp in (1, 16):
+        trilinear, bilinear = (render_checked(scene, cam, size=(width, height), spp=spp, integrator=integrator,
+                                              max_bounces=1 if integrator == "path" else None, texture_filter=f)
+                               for f in ("trilinear", "bilinear"))
+        difference = np.abs(trilinear.rgb - bilinear.rgb).max()
+        if spp == 1:
+            assert difference > 0.05  # level 1 against level 0
+        else:
+            assert difference < 1e-6
+
+
 def head_on_plane_check(texels_per_pixel, visibility, uv_set=0, blocker=False):
     """A square of side L facing a camera at distance D: a pixel spans s = 2 D tan(fov/2) / H on
     it, so du/dx = s / L exactly and the level is log2(N s / L) for an N-texel texture (0 when
