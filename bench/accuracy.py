@@ -16,8 +16,9 @@ warm-up, summed over the scenes).
 Rows: BRDF rungs and presets (direct integrator, 4 spp), spp 1..64, shadows (off, shadow maps),
 integrators (path at max_bounces 1, 2, 4, 8; path + pw.denoise against path at more samples;
 all with the reference BRDF, beside the direct integrator's quality=reference row), IBL rungs on
-an HDR-lit scene, texture filters on a grazing brick floor; all against the path-traced reference; rough transmission rungs on a glass slab before a brick wall, against its
-path reference over the glass's pixels. --only transmission re-runs only those rows (and their
+an HDR-lit scene, texture filters on a grazing brick floor; all against the path-traced
+reference; rough transmission rungs on a glass slab before a brick wall, against its path
+reference over the glass's pixels. --only transmission re-runs only those rows (and their
 reference) and keeps the others from DIR/accuracy.json, saying so in the report.
 Writes DIR/accuracy.{md,json,png} and DIR/accuracy_direct_misses.png (per scene: path reference,
 direct default, and their difference amplified 4x).

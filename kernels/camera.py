@@ -23,3 +23,12 @@ def camera_ray_direction(cam: CameraData, x: float, y: float) -> wp.vec3:
     ndc_x = x * (2.0 / float(cam.width)) - 1.0
     ndc_y = 1.0 - y * (2.0 / float(cam.height))
     return wp.normalize(cam.forward + cam.right * ndc_x + cam.up * ndc_y)
+
+
+@wp.func
+def sample_footprint_side(spp: int) -> float:
+    """The side, in pixels, of one sample's share of a pixel taking ``spp`` samples: one of spp
+    strata, 1/sqrt(spp). Ray differentials this far apart give each sample the texture footprint
+    of its own share, so that the mean of the samples is the pixel's box filter and no wider
+    (pbrt-v4's integrators scale their camera ray differentials by 1/sqrt(spp) likewise)."""
+    return 1.0 / wp.sqrt(float(spp))

@@ -39,7 +39,7 @@ from .area_lights import area_light_kinds
 from .bsdf_sampling import (pdf_brdf_direction, pdf_coated_direction, power_heuristic, sample_brdf_direction,
                             sample_coated_direction, specular_lobe_probability)
 from .brdf import brdf_for, max_channel
-from .camera import CameraData, camera_ray_direction
+from .camera import CameraData, camera_ray_direction, sample_footprint_side
 from .clearcoat import Coat, clearcoat_for
 from .emitters import LightTable, area_to_solid_angle, choose_light_or_environment, sample_triangle, triangle_area
 from .environment_sampling import pdf_environment, sample_environment
@@ -454,9 +454,7 @@ def path_kernel(features):
                    env: EnvironmentData, lights: LightTable, rows: wp.array(dtype=wp.int32)):
         """Row py of the image, path by path, unless rows[STOP] is set: then the row is left at the
         next pixel."""
-        # a sample's footprint: the side of one of spp strata of the pixel, as in the direct
-        # kernel (a whole pixel would blur textures by a pixel more than the samples' average does)
-        step = 1.0 / wp.sqrt(float(spp))
+        step = sample_footprint_side(spp)
         for px in range(cam.width):
             if read_counter(rows, STOP) != 0:
                 return

@@ -14,7 +14,7 @@ from .area_lights import (AREA_LIGHT_STREAM, AREA_RECT, AreaLightData, area_ligh
                           sphere_irradiance, sphere_representative_point)
 from .brdf import albedo_coupled_brdf_for, brdf_for, fresnel_dielectric, max_channel
 from .ibl import EnvironmentData, environment_radiance, prefiltered_radiance
-from .camera import CameraData, camera_ray_direction
+from .camera import CameraData, camera_ray_direction, sample_footprint_side
 from .clearcoat import Coat, clearcoat_for
 from .light_buffer import LightBuffers
 from .light_buffer_query import (OCCLUDED, SHADOW_CACHE_LIGHTS, UNDECIDED, ShadowCache, light_buffer_occlusion,
@@ -523,7 +523,7 @@ def render_kernel(features):
         cache = ShadowCache(-1)
         scale = wp.vec3(1.0)
         scale_material = int(-1)
-        step = 1.0 / wp.sqrt(float(spp))  # the side of a sample's stratum, in pixels
+        step = sample_footprint_side(spp)
         for px in range(cam.width):
             if read_counter(rows, STOP) != 0:
                 return

@@ -162,6 +162,11 @@ def test_an_unfinished_output_is_rendered_again(first_run, tmp_path):
     assert not batch.finished(other_size)
 
 
+def _renders(key, job_id) -> bool:
+    """Whether the Dask task ``key`` renders the job ``job_id`` (keys: batch.job_key)."""
+    return f"-{job_id}-" in str(key)
+
+
 class _KillOnce(distributed.WorkerPlugin):
     """Kills (SIGKILL) the worker process whose job ``victim`` enters the state ``moment``
     ("executing": it starts; "memory": it has returned, its image written, and the scheduler is
@@ -175,7 +180,7 @@ class _KillOnce(distributed.WorkerPlugin):
         self.address = worker.address
 
     def transition(self, key, start, finish, **kwargs):
-        if finish != self.moment or not f"-{self.victim}-" in str(key):
+        if finish != self.moment or not _renders(key, self.victim):
             return
         try:
             fd = os.open(self.marker, os.O_WRONLY | os.O_CREAT | os.O_EXCL)
@@ -220,7 +225,7 @@ class _KillAlways(distributed.WorkerPlugin):
         self.victim = victim
 
     def transition(self, key, start, finish, **kwargs):
-        if finish == "executing" and f"-{self.victim}-" in str(key):
+        if finish == "executing" and _renders(key, self.victim):
             os.kill(os.getpid(), signal.SIGKILL)
 
 

@@ -34,20 +34,31 @@ def test_footprint_of_a_surface_seen_through_a_culled_one(visibility):
     head_on_plane_check(2 ** 1.6, visibility, blocker=True)
 
 
+# the head-on view: a square of HEAD_ON_SIDE carrying a HEAD_ON_TEXELS² texture, seen from
+# HEAD_ON_DISTANCE in a HEAD_ON_SIZE (width, height) image
+HEAD_ON_TEXELS, HEAD_ON_SIDE, HEAD_ON_SIZE, HEAD_ON_DISTANCE = 256, 2.0, (32, 24), 3.0
+
+
+def head_on_camera(texels_per_pixel):
+    """(camera, half the height it sees on the plane) for the head-on view at ``texels_per_pixel``,
+    looking along -z at (0.1, -0.05, 0)."""
+    pixel = HEAD_ON_SIDE / HEAD_ON_TEXELS * texels_per_pixel  # world units a pixel spans on the plane
+    half_height = pixel * HEAD_ON_SIZE[1] / 2
+    fov = 2 * np.degrees(np.arctan(half_height / HEAD_ON_DISTANCE))
+    return pw.Camera.look_at(eye=(0.1, -0.05, HEAD_ON_DISTANCE), target=(0.1, -0.05, 0), fov_y=fov), half_height
+
+
 @pytest.mark.parametrize("integrator", ["direct", "path"])
 def test_a_sample_reads_textures_over_its_stratum_of_the_pixel(integrator):
     """With spp samples a sample's footprint is one stratum, 1/sqrt(spp) of a pixel a side: at 2
     texels per pixel, from 16 spp on (half a texel) trilinear lookups read level 0, exactly what
     the bilinear rung reads at the same samples; at 1 spp the footprint is two texels (level 1)."""
-    n, side, height, width, distance = 256, 2.0, 24, 32, 3.0
-    half_height = side / n * 2.0 * height / 2  # 2 texels to a pixel
     scene = pw.Scene()
-    scene.add_mesh(quad(size=side, material=pw.Material(base_color_texture=random_texture(n))))
+    scene.add_mesh(quad(size=HEAD_ON_SIDE, material=pw.Material(base_color_texture=random_texture(HEAD_ON_TEXELS))))
     scene.add_light(pw.DirectionalLight(direction=(0.0, 0.0, -1.0), intensity=3.0))
-    cam = pw.Camera.look_at(eye=(0.1, -0.05, distance), target=(0.1, -0.05, 0.0),
-                            fov_y=2 * np.degrees(np.arctan(half_height / distance)))
+    cam, _ = head_on_camera(2.0)
     for spp in (1, 16):
-        trilinear, bilinear = (render_checked(scene, cam, size=(width, height), spp=spp, integrator=integrator,
+        trilinear, bilinear = (render_checked(scene, cam, size=HEAD_ON_SIZE, spp=spp, integrator=integrator,
                                               max_bounces=1 if integrator == "path" else None, texture_filter=f)
                                for f in ("trilinear", "bilinear"))
         difference = np.abs(trilinear.rgb - bilinear.rgb).max()
@@ -64,13 +75,10 @@ def head_on_plane_check(texels_per_pixel, visibility, uv_set=0, blocker=False):
     chain at its centre's uv, computed in float64. With ``uv_set`` 1 the texture reads uvs1,
     and uvs span a thousandth of it (their footprint would be level 0); with ``blocker`` a
     single-sided square facing away from the camera, halfway to it, covers the view."""
-    n, side, height, width = 256, 2.0, 24, 32
+    n, side, (width, height), distance = HEAD_ON_TEXELS, HEAD_ON_SIDE, HEAD_ON_SIZE, HEAD_ON_DISTANCE
     texture = random_texture(n)
     texture.texcoord = uv_set
-    pixel = side / n * texels_per_pixel  # world units a pixel spans on the plane
-    half_height = pixel * height / 2
-    distance = 3.0
-    fov = 2 * np.degrees(np.arctan(half_height / distance))
+    cam, half_height = head_on_camera(texels_per_pixel)
     prim = quad(size=side, material=unlit(texture))
     if uv_set == 1:
         prim.uvs1, prim.uvs = prim.uvs, prim.uvs * 1e-3 + 0.5
@@ -80,7 +88,6 @@ def head_on_plane_check(texels_per_pixel, visibility, uv_set=0, blocker=False):
         away = quad(size=4 * side, z=distance / 2, material=pw.Material(double_sided=False))
         away.faces = away.faces[:, ::-1]
         scene.add_mesh(away)
-    cam = pw.Camera.look_at(eye=(0.1, -0.05, distance), target=(0.1, -0.05, 0), fov_y=fov)
     frame = render_checked(scene, cam, size=(width, height), visibility=visibility)
     # pixel centres on the plane, and their uv (u = (x + 1) / 2, v = (1 - y) / 2 on scenes.quad)
     px, py = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
